@@ -1,0 +1,107 @@
+"""The one error type that reaches the user as "invalid input" (exit code 2)."""
+
+from __future__ import annotations
+
+import difflib
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+
+from pydantic import ValidationError
+
+
+class InputError(Exception):
+    """Invalid user input: names the file, the key path and what is allowed.
+
+    Parameters
+    ----------
+    source : str or Path
+        The file (or other input) that is wrong.
+    message : str
+        What is wrong and what is allowed.
+    key : str, optional
+        Dotted key path inside the file, e.g. ``command.start_frequency``.
+    """
+
+    def __init__(self, source: str | Path, message: str, key: str | None = None):
+        self.source = str(source)
+        self.key = key
+        self.message = message
+        where = f"{self.source}: {key}: " if key else f"{self.source}: "
+        super().__init__(where + message)
+
+
+def key_path(loc: Sequence[str | int], tags: Iterable[str] = ()) -> str:
+    """Dotted key path from a pydantic error location, without union tags."""
+    tags = set(tags)
+    parts = []
+    for item in loc:
+        if isinstance(item, int):
+            parts.append(f"[{item}]")
+        elif item not in tags:
+            parts.append(("." if parts else "") + item)
+    return "".join(parts) or "(top level)"
+
+
+def _suggestion(name: str, allowed: Iterable[str]) -> str:
+    close = difflib.get_close_matches(name, list(allowed), n=1, cutoff=0.6)
+    return f"; did you mean '{close[0]}'?" if close else ""
+
+
+def from_validation_error(
+    source: str | Path, error: ValidationError, model: type, tags: Iterable[str] = ()
+) -> InputError:
+    """Turn the first pydantic error into an :class:`InputError`.
+
+    Unknown keys get the list of allowed keys at that level and the closest
+    match, so a misspelt key says what was meant.
+    """
+    first = error.errors(include_url=False)[0]
+    loc = tuple(first["loc"])
+    path = key_path(loc, tags)
+    if first["type"] == "extra_forbidden":
+        allowed = _allowed_keys(model, loc[:-1], tags)
+        name = str(loc[-1])
+        hint = _suggestion(name, allowed)
+        listing = ", ".join(sorted(allowed)) if allowed else "none"
+        return InputError(source, f"unknown key '{name}'{hint} (allowed here: {listing})", path)
+    message = first["msg"]
+    given = first.get("input")
+    if first["type"] not in ("missing",) and not isinstance(given, (dict, list)):
+        message += f" (got {given!r})"
+    return InputError(source, message, path)
+
+
+def _allowed_keys(model: type, loc: Sequence[str | int], tags: Iterable[str]) -> list[str]:
+    """Field names of the nested model reached by ``loc`` (best effort)."""
+    from typing import get_args, get_origin
+
+    from pydantic import BaseModel
+
+    tags = set(tags)
+    current = model
+    for item in loc:
+        if isinstance(item, int) or item in tags:
+            continue
+        if not (isinstance(current, type) and issubclass(current, BaseModel)):
+            return []
+        field = current.model_fields.get(item)
+        if field is None:
+            return []
+        current = _model_of(field.annotation, get_args, get_origin)
+        if current is None:
+            return []
+    if isinstance(current, type) and issubclass(current, BaseModel):
+        return list(current.model_fields)
+    return []
+
+
+def _model_of(annotation, get_args, get_origin):
+    from pydantic import BaseModel
+
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return annotation
+    for arg in get_args(annotation):
+        found = _model_of(arg, get_args, get_origin)
+        if found is not None:
+            return found
+    return None

@@ -1,0 +1,43 @@
+"""Controller electronics: position and speed PI loops with anti-windup, sensors (ADC)."""
+
+from __future__ import annotations
+
+from numba import njit
+
+
+@njit(cache=True)
+def clip(x, limit):
+    """Symmetric saturation of ``x`` to ``[-limit, limit]``."""
+    if x > limit:
+        return limit
+    if x < -limit:
+        return -limit
+    return x
+
+
+@njit(cache=True)
+def quantize(x, lsb, full_scale):
+    """ADC: round to the nearest code of width ``lsb``, saturate at +/-full scale."""
+    return clip(round(x / lsb) * lsb, full_scale)
+
+
+@njit(cache=True)
+def controller_update(command, position, speed, position_int, speed_int, ctrl):
+    """One controller period: returns (I_ref [A], position_int, speed_int).
+
+    Position loop ``w* = sat(Kx e + int)``; speed loop ``I_ref = sat(Kw e_w + int)``.
+    Anti-windup by conditional integration: an integrator only moves when its
+    loop is not saturated or when the error drives it out of saturation.
+    Integrators use forward Euler at the controller period (ZOH output).
+    """
+    error = command - position
+    raw_speed = ctrl.position_gain * error + position_int
+    speed_ref = clip(raw_speed, ctrl.speed_limit)
+    if raw_speed == speed_ref or error * raw_speed < 0.0:
+        position_int += ctrl.position_integral * error * ctrl.period
+    speed_error = speed_ref - speed
+    raw_current = ctrl.speed_gain * speed_error + speed_int
+    current_ref = clip(raw_current, ctrl.current_limit)
+    if raw_current == current_ref or speed_error * raw_current < 0.0:
+        speed_int += ctrl.speed_integral * speed_error * ctrl.period
+    return current_ref, position_int, speed_int

@@ -1,0 +1,1 @@
+"""Model runners: the boundary between scenarios/parameters and the kernels."""

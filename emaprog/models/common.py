@@ -1,0 +1,41 @@
+"""What the Reference and Monitor runners share: inputs on the grid and provenance."""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from .. import __version__, signals
+from ..parameters import Parameters
+from ..scenario import Scenario
+
+
+class Inputs(NamedTuple):
+    """Operating inputs sampled on the controller grid."""
+
+    time: np.ndarray  # [s]
+    command: np.ndarray  # [rad]
+    load_torque: np.ndarray  # [N m]
+    load_stiffness: float  # [N m/rad]
+
+
+def inputs(scenario: Scenario, params: Parameters) -> Inputs:
+    t = signals.time_grid(scenario.duration, params.spec.controller.rate)
+    cmd = signals.command(scenario.command, t, scenario.duration)
+    torque, stiffness = signals.load(scenario.load, t)
+    return Inputs(t, cmd, torque, stiffness)
+
+
+def provenance(model: str, scenario: Scenario, params: Parameters, **extra) -> dict:
+    """The ``emaprog`` metadata of a trace (SPEC 4)."""
+    return {
+        "emaprog_version": __version__,
+        "model": model,
+        "scenario": scenario.model_dump(mode="json"),
+        "parameters": params.values(),
+        "parameter_file": params.source_file,
+        "seed": scenario.seed,
+        "sample_rate": params.spec.controller.rate,
+        **extra,
+    }

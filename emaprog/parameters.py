@@ -1,0 +1,253 @@
+"""Parameter sets: named YAML files -> validated, frozen structs for the kernels.
+
+A parameter set holds physical values only (SI units). The numerical method
+(time steps) lives in :mod:`emaprog.numerics`; operating inputs (command, load,
+faults) live in the scenario. Derived constants are computed in one place,
+:func:`derive`, and nothing mutates a built set.
+"""
+
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+from typing import Annotated, Literal, NamedTuple
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from .errors import InputError, from_validation_error
+from .yamlfile import load_mapping
+
+Pos = Annotated[float, Field(strict=True, gt=0)]
+NonNeg = Annotated[float, Field(strict=True, ge=0)]
+Real = Annotated[float, Field(strict=True)]
+
+
+class _Section(BaseModel):
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, frozen=True)
+
+
+class Electrical(_Section):
+    """Three-phase trapezoidal BLDC motor and its drive."""
+
+    dc_bus_voltage: Pos = Field(description="[V] H-bridge DC link")
+    pole_pairs: Annotated[int, Field(strict=True, ge=1, le=32)] = Field(description="[-]")
+    phase_resistance: Pos = Field(description="[ohm] per phase")
+    phase_inductance: Pos = Field(description="[H] per phase")
+    back_emf_constant: Pos = Field(description="[V s/rad] per phase, flat top, mechanical speed")
+    current_limit: Pos = Field(description="[A] saturation of the current reference")
+    hysteresis_band: Pos = Field(description="[A] half width of the hysteresis current regulator")
+
+
+class Mechanical(_Section):
+    """2-DOF transmission: motor side, compliant geared link with backlash, surface."""
+
+    motor_inertia: Pos = Field(description="[kg m^2]")
+    motor_viscous: NonNeg = Field(description="[N m s/rad] at the motor")
+    static_friction: Pos = Field(description="[N m] Borello breakaway torque at the motor")
+    dynamic_friction: Pos = Field(description="[N m] Borello sliding torque at the motor")
+    gear_ratio: Pos = Field(description="[-] motor angle / surface angle")
+    surface_inertia: Pos = Field(description="[kg m^2]")
+    surface_damping: NonNeg = Field(description="[N m s/rad] at the surface")
+    transmission_stiffness: Pos = Field(description="[N m/rad] at the output")
+    transmission_damping: NonNeg = Field(description="[N m s/rad] at the output")
+    end_stop: Pos = Field(description="[rad] surface travel limit (symmetric)")
+    end_stop_stiffness: Pos = Field(description="[N m/rad] contact stiffness of the stops")
+    end_stop_damping: NonNeg = Field(description="[N m s/rad] contact damping of the stops")
+
+    @model_validator(mode="after")
+    def _static_above_dynamic(self):
+        if self.static_friction < self.dynamic_friction:
+            raise ValueError("static_friction must be >= dynamic_friction (Borello model)")
+        return self
+
+
+class Controller(_Section):
+    """Digital position and speed loops (PI with anti-windup), ZOH at `rate`."""
+
+    rate: Pos = Field(description="[Hz] controller sample rate = trace sample rate")
+    position_gain: Pos = Field(description="[(rad/s motor)/rad surface] position loop P")
+    position_integral: NonNeg = Field(description="[(rad/s motor)/(rad s)] position loop I")
+    speed_gain: Pos = Field(description="[A s/rad] speed loop P")
+    speed_integral: NonNeg = Field(description="[A/rad] speed loop I")
+    speed_limit: Pos = Field(description="[rad/s] motor speed command saturation")
+
+
+class Sensors(_Section):
+    """Feedback transducers: offset, electrical noise (1 sigma), ADC."""
+
+    position_offset: Real = Field(description="[rad] position transducer offset")
+    position_noise: NonNeg = Field(description="[rad] 1-sigma noise on the position line")
+    speed_noise: NonNeg = Field(description="[rad/s] 1-sigma noise on the speed line")
+    current_noise: NonNeg = Field(description="[A] 1-sigma noise on each phase-current line")
+    adc_bits: Annotated[int, Field(strict=True, ge=8, le=24)] = Field(description="[bit]")
+    position_range: Pos = Field(description="[rad] ADC full scale (+/-)")
+    speed_range: Pos = Field(description="[rad/s] ADC full scale (+/-)")
+    current_range: Pos = Field(description="[A] ADC full scale (+/-)")
+
+
+class Monitor(_Section):
+    """Monitor Model equivalents; written by `emaprog calibrate`."""
+
+    short_circuit_model: Literal["modulated", "averaged"] = Field(
+        description="PSC law of the single-phase equivalent (SPEC 1)"
+    )
+    eccentricity_model: Literal["pair", "paper"] = Field(
+        description="RE shape: 'pair' derived from the RM law, 'paper' = Eq. 5"
+    )
+    eccentricity_gain: Pos = Field(description="[-] c in Z = c * zeta")
+    torque_gain_scale: Pos = Field(description="[-] nominal torque/back-EMF gain correction")
+
+
+class Threshold(_Section):
+    incipient: NonNeg
+    degraded: NonNeg
+
+    @model_validator(mode="after")
+    def _ordered(self):
+        if not self.incipient < self.degraded:
+            raise ValueError("incipient must be below degraded")
+        return self
+
+
+class Health(_Section):
+    """Health verdict thresholds on the *deviation* from healthy of each fault."""
+
+    friction: Threshold = Field(description="[-] friction multiplier minus 1")
+    backlash: Threshold = Field(description="[rad]")
+    short_circuit: Threshold = Field(description="[-] shorted fraction, worst phase")
+    eccentricity: Threshold = Field(description="[-] zeta")
+
+
+class ParameterFile(_Section):
+    name: Annotated[str, Field(pattern=r"^[A-Za-z0-9_-]+$")]
+    description: str
+    source: str = Field(description="where the values come from")
+    changes: list[str] = Field(default_factory=list, description="record of tuning changes")
+    electrical: Electrical
+    mechanical: Mechanical
+    controller: Controller
+    sensors: Sensors
+    monitor: Monitor
+    health: Health
+
+
+# ---------------------------------------------------------------- kernel structs
+class ElectricalParams(NamedTuple):
+    dc_bus_voltage: float  # [V]
+    pole_pairs: float  # [-]
+    phase_resistance: float  # [ohm]
+    phase_inductance: float  # [H]
+    back_emf_constant: float  # [V s/rad] per phase
+    current_limit: float  # [A]
+    hysteresis_band: float  # [A]
+
+
+class MechanicalParams(NamedTuple):
+    motor_inertia: float
+    motor_viscous: float
+    static_friction: float
+    dynamic_friction: float
+    gear_ratio: float
+    surface_inertia: float
+    surface_damping: float
+    transmission_stiffness: float
+    transmission_damping: float
+    end_stop: float
+    end_stop_stiffness: float
+    end_stop_damping: float
+
+
+class ControllerParams(NamedTuple):
+    period: float  # [s] derived: 1 / rate
+    position_gain: float
+    position_integral: float
+    speed_gain: float
+    speed_integral: float
+    speed_limit: float
+    current_limit: float  # [A] copied from electrical: the loop saturates I_ref
+
+
+class SensorParams(NamedTuple):
+    position_offset: float
+    position_lsb: float  # [rad] derived: 2 range / 2^bits
+    speed_lsb: float  # [rad/s] derived
+    current_lsb: float  # [A] derived
+    position_range: float
+    speed_range: float
+    current_range: float
+
+
+class Parameters(NamedTuple):
+    """A built parameter set: the validated file plus the kernel structs."""
+
+    source_file: str
+    spec: ParameterFile
+    electrical: ElectricalParams
+    mechanical: MechanicalParams
+    controller: ControllerParams
+    sensors: SensorParams
+
+    def values(self) -> dict:
+        """Plain values actually used (for provenance)."""
+        return self.spec.model_dump(mode="json")
+
+
+def derive(spec: ParameterFile, source_file: str) -> Parameters:
+    """Build kernel structs from a validated file; every derived value is here."""
+    e, m, c, s = spec.electrical, spec.mechanical, spec.controller, spec.sensors
+    levels = float(2**s.adc_bits)
+    return Parameters(
+        source_file=source_file,
+        spec=spec,
+        electrical=ElectricalParams(
+            e.dc_bus_voltage, float(e.pole_pairs), e.phase_resistance, e.phase_inductance,
+            e.back_emf_constant, e.current_limit, e.hysteresis_band,
+        ),
+        mechanical=MechanicalParams(**m.model_dump()),
+        controller=ControllerParams(
+            1.0 / c.rate, c.position_gain, c.position_integral, c.speed_gain,
+            c.speed_integral, c.speed_limit, e.current_limit,
+        ),
+        sensors=SensorParams(
+            s.position_offset, 2 * s.position_range / levels, 2 * s.speed_range / levels,
+            2 * s.current_range / levels, s.position_range, s.speed_range, s.current_range,
+        ),
+    )
+
+
+def builtin_dir() -> Path:
+    """Folder of the parameter sets shipped with the package."""
+    return Path(str(resources.files("emaprog") / "data" / "parameters"))
+
+
+def builtin_names() -> list[str]:
+    return sorted(p.stem for p in builtin_dir().glob("*.yaml"))
+
+
+def resolve(name_or_path: str, relative_to: Path | None = None) -> Path:
+    """Find a parameter set: an existing path, else a shipped name."""
+    candidate = Path(name_or_path)
+    if candidate.suffix in (".yaml", ".yml"):
+        if not candidate.is_absolute() and relative_to is not None:
+            candidate = relative_to / candidate
+        return candidate
+    path = builtin_dir() / f"{name_or_path}.yaml"
+    if path.is_file():
+        return path
+    raise InputError(
+        relative_to or "parameters",
+        f"unknown parameter set '{name_or_path}' (shipped: {', '.join(builtin_names())};"
+        " or give a path ending in .yaml)",
+        "parameters",
+    )
+
+
+def load(name_or_path: str = "default", relative_to: Path | None = None) -> Parameters:
+    """Load, validate and derive a parameter set by name or path."""
+    path = resolve(name_or_path, relative_to)
+    data = load_mapping(path)
+    try:
+        spec = ParameterFile.model_validate(data)
+    except ValidationError as exc:
+        raise from_validation_error(path, exc, ParameterFile) from None
+    return derive(spec, str(path))

@@ -1,0 +1,325 @@
+"""Scenario, identification and campaign files: pydantic v2 models (SPEC 3, 6).
+
+Every model forbids unknown keys and non-finite numbers; every numeric field
+states its unit and range. :func:`load_scenario` and :func:`load_campaign` turn
+any problem into an :class:`~emaprog.errors.InputError` naming file and key.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated, Any, Literal, Union
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from .errors import InputError, from_validation_error
+from .yamlfile import load_mapping
+
+TWO_PI = 2.0 * math.pi
+Name = Annotated[str, Field(pattern=r"^[A-Za-z0-9_-]{1,80}$", description="letters digits - _")]
+
+
+def _num(lo: float | None = None, hi: float | None = None, *, lo_open=False, hi_open=False, **kw):
+    bounds: dict[str, float] = {}
+    if lo is not None:
+        bounds["gt" if lo_open else "ge"] = lo
+    if hi is not None:
+        bounds["lt" if hi_open else "le"] = hi
+    return Annotated[float, Field(strict=True, **bounds, **kw)]
+
+
+Angle = _num(-0.4, 0.4, description="[rad] surface angle, within the end stops")
+Frequency = _num(0.0, 200.0, lo_open=True, description="[Hz]")
+Fraction = _num(0.0, 1.0, hi_open=True, description="[-] shorted fraction of a phase's turns")
+
+
+class Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, frozen=True)
+
+
+# ------------------------------------------------------------------ commands
+class StepCommand(Strict):
+    kind: Literal["step"]
+    amplitude: Angle
+    time: _num(0.0, 60.0, description="[s] step instant") = 0.0
+    offset: Angle = 0.0
+
+
+class RampCommand(Strict):
+    kind: Literal["ramp"]
+    rate: _num(-10.0, 10.0, description="[rad/s]")
+    time: _num(0.0, 60.0, description="[s] ramp start") = 0.0
+    offset: Angle = 0.0
+
+
+class SineCommand(Strict):
+    kind: Literal["sine"]
+    amplitude: Angle
+    frequency: Frequency
+    offset: Angle = 0.0
+
+
+class ChirpCommand(Strict):
+    kind: Literal["chirp"]
+    amplitude: Angle
+    start_frequency: Frequency
+    end_frequency: Frequency
+    offset: Angle = 0.0
+
+
+class ConstantCommand(Strict):
+    kind: Literal["constant"]
+    offset: Angle = 0.0
+
+
+Command = Annotated[
+    Union[StepCommand, RampCommand, SineCommand, ChirpCommand, ConstantCommand],
+    Field(discriminator="kind"),
+]
+COMMAND_TAGS = ("step", "ramp", "sine", "chirp", "constant")
+
+
+# ---------------------------------------------------------------------- load
+class NoLoad(Strict):
+    kind: Literal["none"]
+
+
+class ConstantLoad(Strict):
+    kind: Literal["constant"]
+    torque: _num(-5000.0, 5000.0, description="[N m] hinge moment opposing +deflection")
+
+
+class SpringLoad(Strict):
+    kind: Literal["spring"]
+    stiffness: _num(0.0, 1.0e5, description="[N m/rad] aerodynamic spring")
+    torque: _num(-5000.0, 5000.0, description="[N m] constant part") = 0.0
+
+
+Load = Annotated[Union[NoLoad, ConstantLoad, SpringLoad], Field(discriminator="kind")]
+LOAD_TAGS = ("none", "constant", "spring")
+
+
+# -------------------------------------------------------------------- faults
+class ShortCircuit(Strict):
+    a: Fraction = 0.0
+    b: Fraction = 0.0
+    c: Fraction = 0.0
+
+
+class Eccentricity(Strict):
+    zeta: _num(0.0, 1.0, hi_open=True, description="[-] air-gap reduction / nominal gap") = 0.0
+    phase: _num(0.0, TWO_PI, description="[rad] angular position of the narrow gap") = 0.0
+
+
+class Faults(Strict):
+    friction: _num(0.1, 10.0, description="[-] multiplier of nominal dry friction") = 1.0
+    backlash: _num(0.0, 0.01, description="[rad] total play on the output shaft") = 0.0
+    short_circuit: ShortCircuit = ShortCircuit()
+    eccentricity: Eccentricity = Eccentricity()
+
+
+# ------------------------------------------------------------------ identify
+FaultName = Literal["friction", "backlash", "short_circuit", "eccentricity"]
+
+DEFAULT_BOUNDS = {
+    "friction": (0.5, 4.0),
+    "backlash": (0.0, 1.5e-3),
+    "short_circuit": (0.0, 0.5),
+    "eccentricity": (0.0, 0.8),
+}
+BOUND_LIMITS = {  # what a bound itself may be, same units as Faults
+    "friction": (0.1, 10.0),
+    "backlash": (0.0, 0.01),
+    "short_circuit": (0.0, 0.95),
+    "eccentricity": (0.0, 0.95),
+}
+
+
+class Bounds(Strict):
+    friction: tuple[float, float] = DEFAULT_BOUNDS["friction"]
+    backlash: tuple[float, float] = DEFAULT_BOUNDS["backlash"]
+    short_circuit: tuple[float, float] = DEFAULT_BOUNDS["short_circuit"]
+    eccentricity: tuple[float, float] = DEFAULT_BOUNDS["eccentricity"]
+
+    @model_validator(mode="after")
+    def _check(self):
+        for name, (lo, hi) in self.model_dump().items():
+            low, high = BOUND_LIMITS[name]
+            if not (math.isfinite(lo) and math.isfinite(hi)):
+                raise ValueError(f"{name}: bounds must be finite numbers")
+            if not lo < hi:
+                raise ValueError(f"{name}: lower bound {lo} must be below upper bound {hi}")
+            if lo < low or hi > high:
+                raise ValueError(f"{name}: bounds must lie within [{low}, {high}]")
+        return self
+
+
+class Signals(Strict):
+    current: _num(0.0, 1e3, description="[-] weight of the equivalent-current error") = 1.0
+    position: _num(0.0, 1e3, description="[-] weight of the position error") = 0.0
+    speed: _num(0.0, 1e3, description="[-] weight of the speed error") = 0.0
+
+    @model_validator(mode="after")
+    def _some_weight(self):
+        if self.current + self.position + self.speed <= 0:
+            raise ValueError("at least one signal weight must be positive")
+        return self
+
+
+class GASettings(Strict):
+    population: Annotated[int, Field(strict=True, ge=4, le=4096)] = 64
+    generations: Annotated[int, Field(strict=True, ge=1, le=1000)] = 40
+    crossover: _num(0.0, 1.0, description="[-] crossover probability") = 0.7
+    mutation: _num(0.0, 1.0, description="[-] mutation probability") = 0.2
+    seed: Annotated[int, Field(strict=True, ge=0, le=2**32 - 1)] = 1
+
+
+class IdentifySettings(Strict):
+    estimate: list[FaultName] = Field(
+        default_factory=lambda: ["friction", "backlash", "short_circuit", "eccentricity"]
+    )
+    bounds: Bounds = Bounds()
+    signals: Signals = Signals()
+    ga: GASettings = GASettings()
+    refine: bool = True
+
+    @model_validator(mode="after")
+    def _unique(self):
+        if not self.estimate:
+            raise ValueError("estimate must name at least one fault")
+        if len(set(self.estimate)) != len(self.estimate):
+            raise ValueError("estimate lists a fault twice")
+        return self
+
+
+# ------------------------------------------------------------------ scenario
+class Scenario(Strict):
+    name: Name
+    description: str = ""
+    parameters: str = Field("default", min_length=1, description="parameter set name or path")
+    duration: _num(0.0, 60.0, lo_open=True, description="[s]")
+    seed: Annotated[int, Field(strict=True, ge=0, le=2**32 - 1)] = 0
+    command: Command
+    load: Load = NoLoad(kind="none")
+    faults: Faults = Faults()
+    identify: IdentifySettings = IdentifySettings()
+
+    @model_validator(mode="after")
+    def _times_inside(self):
+        start = getattr(self.command, "time", None)
+        if start is not None and start >= self.duration:
+            raise ValueError(
+                f"command.time {start} s must be before the end of the run ({self.duration} s)"
+            )
+        return self
+
+
+SCENARIO_TAGS = COMMAND_TAGS + LOAD_TAGS
+
+
+def _validate(model: type[BaseModel], data: dict, source: str | Path, tags=()) -> Any:
+    try:
+        return model.model_validate(data)
+    except ValidationError as exc:
+        raise from_validation_error(source, exc, model, tags) from None
+
+
+def parse_scenario(data: dict, source: str | Path) -> Scenario:
+    return _validate(Scenario, data, source, SCENARIO_TAGS)
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Load and validate a scenario file; checks its parameter set exists too."""
+    from . import parameters
+
+    path = Path(path)
+    scenario = parse_scenario(load_mapping(path), path)
+    parameters.load(scenario.parameters, relative_to=path.parent)
+    return scenario
+
+
+# ------------------------------------------------------------------ campaign
+class Uniform(Strict):
+    uniform: tuple[float, float]
+
+    @model_validator(mode="after")
+    def _ordered(self):
+        lo, hi = self.uniform
+        if not (math.isfinite(lo) and math.isfinite(hi)):
+            raise ValueError("uniform bounds must be finite")
+        if lo > hi:
+            raise ValueError(f"uniform: lower {lo} above upper {hi}")
+        return self
+
+
+class ShortCircuitDistribution(Strict):
+    phase: Literal["any", "a", "b", "c"] = "any"
+    fraction: Uniform
+
+
+class EccentricityDistribution(Strict):
+    zeta: Uniform
+    phase: Uniform = Uniform(uniform=(0.0, TWO_PI))
+
+
+class FaultDistributions(Strict):
+    friction: Uniform | None = None
+    backlash: Uniform | None = None
+    short_circuit: ShortCircuitDistribution | None = None
+    eccentricity: EccentricityDistribution | None = None
+    healthy_fraction: _num(0.0, 1.0, description="[-] share of all-healthy cases") = 0.0
+
+    @model_validator(mode="after")
+    def _within_fault_ranges(self):
+        limits = {
+            "friction": (0.1, 10.0), "backlash": (0.0, 0.01),
+        }
+        for name, (lo, hi) in limits.items():
+            dist = getattr(self, name)
+            if dist is not None and (dist.uniform[0] < lo or dist.uniform[1] > hi):
+                raise ValueError(f"{name}: uniform range must lie within [{lo}, {hi}]")
+        if self.short_circuit is not None:
+            lo, hi = self.short_circuit.fraction.uniform
+            if lo < 0 or hi >= 1:
+                raise ValueError("short_circuit.fraction: uniform range must lie within [0, 1)")
+        if self.eccentricity is not None:
+            lo, hi = self.eccentricity.zeta.uniform
+            if lo < 0 or hi >= 1:
+                raise ValueError("eccentricity.zeta: uniform range must lie within [0, 1)")
+            lo, hi = self.eccentricity.phase.uniform
+            if lo < 0 or hi > TWO_PI:
+                raise ValueError("eccentricity.phase: uniform range must lie within [0, 2 pi]")
+        return self
+
+
+class Campaign(Strict):
+    name: Name
+    description: str = ""
+    cases: Annotated[int, Field(strict=True, ge=1, le=1_000_000)]
+    seed: Annotated[int, Field(strict=True, ge=0, le=2**32 - 1)] = 0
+    scenario: Union[str, Scenario] = Field(description="base scenario: path or inline mapping")
+    faults: FaultDistributions
+    identify: IdentifySettings = IdentifySettings()
+
+
+def load_campaign(path: str | Path) -> tuple[Campaign, Scenario]:
+    """Load a campaign and its base scenario (path resolved next to the campaign)."""
+    from . import parameters
+
+    path = Path(path)
+    campaign = _validate(Campaign, load_mapping(path), path, SCENARIO_TAGS)
+    if isinstance(campaign.scenario, str):
+        base = load_scenario(path.parent / campaign.scenario)
+    else:
+        base = campaign.scenario
+        parameters.load(base.parameters, relative_to=path.parent)
+    return campaign, base
+
+
+def load_any(path: str | Path) -> tuple[str, Any]:
+    """Validate a scenario or a campaign file, told apart by the `cases` key."""
+    data = load_mapping(path)
+    if "cases" in data:
+        return "campaign", load_campaign(path)
+    return "scenario", load_scenario(path)

@@ -1,0 +1,58 @@
+"""Command and load profiles as pure functions on a time grid (float64 arrays)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .scenario import (
+    ChirpCommand, ConstantCommand, ConstantLoad, NoLoad, RampCommand, SineCommand, SpringLoad,
+    StepCommand,
+)
+
+
+def time_grid(duration: float, rate: float) -> np.ndarray:
+    """Sample instants [s] of a run: ``0, 1/rate, ...`` strictly below ``duration``."""
+    n = int(round(duration * rate))
+    return np.arange(n, dtype=np.float64) / rate
+
+
+def chirp(t: np.ndarray, amplitude: float, f0: float, f1: float, duration: float) -> np.ndarray:
+    """Linear chirp ``A sin(2 pi (f0 t + (f1 - f0) t^2 / (2 T)))`` [rad].
+
+    Its instantaneous frequency ``f0 + (f1 - f0) t / T`` sweeps from ``f0`` at
+    ``t = 0`` to ``f1`` at ``t = T``.
+    """
+    phase = 2.0 * np.pi * (f0 * t + 0.5 * (f1 - f0) * t * t / duration)
+    return amplitude * np.sin(phase)
+
+
+def command(spec, t: np.ndarray, duration: float) -> np.ndarray:
+    """Position command on the surface angle [rad] at the instants ``t``."""
+    if isinstance(spec, StepCommand):
+        out = np.where(t >= spec.time, spec.amplitude, 0.0)
+    elif isinstance(spec, RampCommand):
+        out = spec.rate * np.maximum(t - spec.time, 0.0)
+    elif isinstance(spec, SineCommand):
+        out = spec.amplitude * np.sin(2.0 * np.pi * spec.frequency * t)
+    elif isinstance(spec, ChirpCommand):
+        out = chirp(t, spec.amplitude, spec.start_frequency, spec.end_frequency, duration)
+    elif isinstance(spec, ConstantCommand):
+        out = np.zeros_like(t)
+    else:  # the schema admits no other kind
+        raise TypeError(f"unknown command {spec!r}")
+    return np.asarray(out + spec.offset, dtype=np.float64)
+
+
+def load(spec, t: np.ndarray) -> tuple[np.ndarray, float]:
+    """Aerodynamic hinge moment: constant part [N m] on ``t`` and spring rate [N m/rad].
+
+    The moment opposes positive surface deflection:
+    ``T_load = torque + stiffness * theta_surface``.
+    """
+    if isinstance(spec, NoLoad):
+        return np.zeros_like(t), 0.0
+    if isinstance(spec, ConstantLoad):
+        return np.full_like(t, spec.torque), 0.0
+    if isinstance(spec, SpringLoad):
+        return np.full_like(t, spec.torque), float(spec.stiffness)
+    raise TypeError(f"unknown load {spec!r}")

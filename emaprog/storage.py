@@ -1,0 +1,128 @@
+"""Trace <-> Parquet, with per-column units and the ``emaprog`` provenance JSON (SPEC 4)."""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from .errors import InputError
+
+#: Every trace column: unit and description. The single table of record.
+COLUMNS: dict[str, tuple[str, str]] = {
+    "time": ("s", "sample instant"),
+    "command": ("rad", "position command on the surface angle"),
+    "position": ("rad", "measured surface angle"),
+    "speed": ("rad/s", "measured motor speed"),
+    "current": ("A", "equivalent current (|Ia|+|Ib|+|Ic|)/2 sign(T_M)"),
+    "current_a": ("A", "phase A current"),
+    "current_b": ("A", "phase B current"),
+    "current_c": ("A", "phase C current"),
+    "torque": ("N m", "motor electromagnetic torque"),
+    "motor_angle": ("rad", "motor mechanical angle"),
+}
+REQUIRED = ("time", "command", "position", "speed", "current")
+REFERENCE_EXTRA = ("current_a", "current_b", "current_c", "torque", "motor_angle")
+METADATA_KEY = b"emaprog"
+
+
+@dataclass(frozen=True)
+class Trace:
+    """A sampled run: named float64 columns on a common time grid, plus provenance."""
+
+    columns: dict[str, np.ndarray]
+    metadata: dict[str, Any] | None = field(default=None)
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.columns[name]
+
+    @property
+    def time(self) -> np.ndarray:
+        return self.columns["time"]
+
+    @property
+    def sample_rate(self) -> float:
+        return 1.0 / float(np.median(np.diff(self.time)))
+
+
+def write_trace(path: str | Path, trace: Trace) -> Path:
+    """Write atomically (temporary name, then rename) with units and provenance."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fields, arrays = [], []
+    for name in trace.columns:
+        unit, description = COLUMNS[name]
+        fields.append(pa.field(name, pa.float64(), nullable=False,
+                               metadata={b"unit": unit.encode(), b"description": description.encode()}))
+        arrays.append(pa.array(np.asarray(trace.columns[name], dtype=np.float64)))
+    meta = {METADATA_KEY: json.dumps(trace.metadata).encode()} if trace.metadata else None
+    table = pa.Table.from_arrays(arrays, schema=pa.schema(fields, metadata=meta))
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    pq.write_table(table, tmp)
+    os.replace(tmp, path)
+    return path
+
+
+def read_trace(path: str | Path) -> Trace:
+    """Read and validate a trace; any problem is an :class:`InputError`.
+
+    Checks: a readable Parquet file, the SPEC 4 required columns, float64
+    (or losslessly castable numeric) values, all finite, at least 10 samples,
+    strictly increasing and uniformly spaced time. A trace without ``emaprog``
+    metadata (a rig recording) is valid.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(path, "trace file not found")
+    try:
+        table = pq.read_table(path)
+    except (pa.ArrowInvalid, OSError) as exc:
+        raise InputError(path, f"is not a readable Parquet trace ({str(exc).splitlines()[0]})") from None
+    names = table.column_names
+    missing = [c for c in REQUIRED if c not in names]
+    if missing:
+        raise InputError(path, f"missing column(s) {', '.join(missing)}; a trace needs "
+                         f"{', '.join(REQUIRED)} (SPEC 4)")
+    columns = {}
+    for name in names:
+        if name not in COLUMNS:
+            continue  # foreign extra columns are ignored, never guessed at
+        col = table.column(name)
+        if not (pa.types.is_floating(col.type) or pa.types.is_integer(col.type)):
+            raise InputError(path, f"column has type {col.type}, expected float64", name)
+        if col.null_count:
+            raise InputError(path, f"column has {col.null_count} missing values", name)
+        values = col.to_numpy().astype(np.float64)
+        if not np.all(np.isfinite(values)):
+            raise InputError(path, "column holds NaN or infinite values", name)
+        columns[name] = values
+    t = columns["time"]
+    if t.size < 10:
+        raise InputError(path, f"only {t.size} samples; at least 10 are needed", "time")
+    dt = np.diff(t)
+    if np.any(dt <= 0):
+        raise InputError(path, "time must increase strictly from sample to sample", "time")
+    if np.max(np.abs(dt - np.median(dt))) > 1e-6 * np.median(dt) + 1e-12:
+        raise InputError(path, "samples must be uniformly spaced (one row per controller period)", "time")
+    metadata = None
+    raw = (table.schema.metadata or {}).get(METADATA_KEY)
+    if raw is not None:
+        try:
+            metadata = json.loads(raw)
+        except (json.JSONDecodeError, UnicodeDecodeError):
+            raise InputError(path, "the 'emaprog' metadata is not valid JSON") from None
+        if not isinstance(metadata, dict):
+            raise InputError(path, "the 'emaprog' metadata must be a JSON object")
+    return Trace(columns, metadata)
+
+
+def column_units(path: str | Path) -> dict[str, str]:
+    """Units stored in the Arrow field metadata of a trace file."""
+    schema = pq.read_schema(path)
+    return {f.name: (f.metadata or {}).get(b"unit", b"").decode() for f in schema}
