@@ -55,7 +55,9 @@ def from_validation_error(
     Unknown keys get the list of allowed keys at that level and the closest
     match, so a misspelt key says what was meant.
     """
-    first = error.errors(include_url=False)[0]
+    errors = error.errors(include_url=False)
+    # a misspelt key also makes its intended key "missing": report the misspelling
+    first = min(errors, key=lambda e: e["type"] != "extra_forbidden")
     loc = tuple(first["loc"])
     path = key_path(loc, tags)
     if first["type"] == "extra_forbidden":
@@ -64,7 +66,7 @@ def from_validation_error(
         hint = _suggestion(name, allowed)
         listing = ", ".join(sorted(allowed)) if allowed else "none"
         return InputError(source, f"unknown key '{name}'{hint} (allowed here: {listing})", path)
-    message = first["msg"]
+    message = first["msg"].removeprefix("Value error, ")
     given = first.get("input")
     if first["type"] not in ("missing",) and not isinstance(given, (dict, list)):
         message += f" (got {given!r})"

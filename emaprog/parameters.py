@@ -224,8 +224,12 @@ def builtin_names() -> list[str]:
     return sorted(p.stem for p in builtin_dir().glob("*.yaml"))
 
 
-def resolve(name_or_path: str, relative_to: Path | None = None) -> Path:
-    """Find a parameter set: an existing path, else a shipped name."""
+def resolve(name_or_path: str, relative_to: Path | None = None,
+            source: str | Path = "parameters") -> Path:
+    """Find a parameter set: a path ending in .yaml, else a shipped name.
+
+    ``source`` is the file that named the set, for the error message.
+    """
     candidate = Path(name_or_path)
     if candidate.suffix in (".yaml", ".yml"):
         if not candidate.is_absolute() and relative_to is not None:
@@ -235,16 +239,17 @@ def resolve(name_or_path: str, relative_to: Path | None = None) -> Path:
     if path.is_file():
         return path
     raise InputError(
-        relative_to or "parameters",
+        source,
         f"unknown parameter set '{name_or_path}' (shipped: {', '.join(builtin_names())};"
         " or give a path ending in .yaml)",
         "parameters",
     )
 
 
-def load(name_or_path: str = "default", relative_to: Path | None = None) -> Parameters:
+def load(name_or_path: str = "default", relative_to: Path | None = None,
+         source: str | Path = "parameters") -> Parameters:
     """Load, validate and derive a parameter set by name or path."""
-    path = resolve(name_or_path, relative_to)
+    path = resolve(name_or_path, relative_to, source)
     data = load_mapping(path)
     try:
         spec = ParameterFile.model_validate(data)

@@ -11,7 +11,8 @@ import math
 from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import (BaseModel, ConfigDict, Field, ValidationError, ValidationInfo,
+                      field_validator, model_validator)
 
 from .errors import InputError, from_validation_error
 from .yamlfile import load_mapping
@@ -142,17 +143,18 @@ class Bounds(Strict):
     short_circuit: tuple[float, float] = DEFAULT_BOUNDS["short_circuit"]
     eccentricity: tuple[float, float] = DEFAULT_BOUNDS["eccentricity"]
 
-    @model_validator(mode="after")
-    def _check(self):
-        for name, (lo, hi) in self.model_dump().items():
-            low, high = BOUND_LIMITS[name]
-            if not (math.isfinite(lo) and math.isfinite(hi)):
-                raise ValueError(f"{name}: bounds must be finite numbers")
-            if not lo < hi:
-                raise ValueError(f"{name}: lower bound {lo} must be below upper bound {hi}")
-            if lo < low or hi > high:
-                raise ValueError(f"{name}: bounds must lie within [{low}, {high}]")
-        return self
+    @field_validator("friction", "backlash", "short_circuit", "eccentricity")
+    @classmethod
+    def _check(cls, value: tuple[float, float], info: ValidationInfo):
+        lo, hi = value
+        low, high = BOUND_LIMITS[info.field_name]
+        if not (math.isfinite(lo) and math.isfinite(hi)):
+            raise ValueError("bounds must be finite numbers")
+        if not lo < hi:
+            raise ValueError(f"lower bound {lo} must be below upper bound {hi}")
+        if lo < low or hi > high:
+            raise ValueError(f"bounds must lie within [{low}, {high}]")
+        return value
 
 
 class Signals(Strict):
@@ -205,14 +207,14 @@ class Scenario(Strict):
     faults: Faults = Faults()
     identify: IdentifySettings = IdentifySettings()
 
-    @model_validator(mode="after")
-    def _times_inside(self):
-        start = getattr(self.command, "time", None)
-        if start is not None and start >= self.duration:
-            raise ValueError(
-                f"command.time {start} s must be before the end of the run ({self.duration} s)"
-            )
-        return self
+    @field_validator("command")
+    @classmethod
+    def _times_inside(cls, command, info: ValidationInfo):
+        start = getattr(command, "time", None)
+        duration = info.data.get("duration")
+        if start is not None and duration is not None and start >= duration:
+            raise ValueError(f"time {start} s must be before the end of the run ({duration} s)")
+        return command
 
 
 SCENARIO_TAGS = COMMAND_TAGS + LOAD_TAGS
@@ -235,7 +237,7 @@ def load_scenario(path: str | Path) -> Scenario:
 
     path = Path(path)
     scenario = parse_scenario(load_mapping(path), path)
-    parameters.load(scenario.parameters, relative_to=path.parent)
+    parameters.load(scenario.parameters, relative_to=path.parent, source=path)
     return scenario
 
 
@@ -270,27 +272,31 @@ class FaultDistributions(Strict):
     eccentricity: EccentricityDistribution | None = None
     healthy_fraction: _num(0.0, 1.0, description="[-] share of all-healthy cases") = 0.0
 
-    @model_validator(mode="after")
-    def _within_fault_ranges(self):
-        limits = {
-            "friction": (0.1, 10.0), "backlash": (0.0, 0.01),
-        }
-        for name, (lo, hi) in limits.items():
-            dist = getattr(self, name)
-            if dist is not None and (dist.uniform[0] < lo or dist.uniform[1] > hi):
-                raise ValueError(f"{name}: uniform range must lie within [{lo}, {hi}]")
-        if self.short_circuit is not None:
-            lo, hi = self.short_circuit.fraction.uniform
-            if lo < 0 or hi >= 1:
-                raise ValueError("short_circuit.fraction: uniform range must lie within [0, 1)")
-        if self.eccentricity is not None:
-            lo, hi = self.eccentricity.zeta.uniform
-            if lo < 0 or hi >= 1:
-                raise ValueError("eccentricity.zeta: uniform range must lie within [0, 1)")
-            lo, hi = self.eccentricity.phase.uniform
-            if lo < 0 or hi > TWO_PI:
-                raise ValueError("eccentricity.phase: uniform range must lie within [0, 2 pi]")
-        return self
+    @field_validator("friction", "backlash")
+    @classmethod
+    def _within_fault_range(cls, dist, info: ValidationInfo):
+        lo, hi = {"friction": (0.1, 10.0), "backlash": (0.0, 0.01)}[info.field_name]
+        if dist is not None and (dist.uniform[0] < lo or dist.uniform[1] > hi):
+            raise ValueError(f"uniform range must lie within [{lo}, {hi}]")
+        return dist
+
+    @field_validator("short_circuit")
+    @classmethod
+    def _fraction_range(cls, dist):
+        if dist is not None and (dist.fraction.uniform[0] < 0 or dist.fraction.uniform[1] >= 1):
+            raise ValueError("fraction: uniform range must lie within [0, 1)")
+        return dist
+
+    @field_validator("eccentricity")
+    @classmethod
+    def _eccentricity_range(cls, dist):
+        if dist is None:
+            return dist
+        if dist.zeta.uniform[0] < 0 or dist.zeta.uniform[1] >= 1:
+            raise ValueError("zeta: uniform range must lie within [0, 1)")
+        if dist.phase.uniform[0] < 0 or dist.phase.uniform[1] > TWO_PI:
+            raise ValueError("phase: uniform range must lie within [0, 2 pi]")
+        return dist
 
 
 class Campaign(Strict):
@@ -313,7 +319,7 @@ def load_campaign(path: str | Path) -> tuple[Campaign, Scenario]:
         base = load_scenario(path.parent / campaign.scenario)
     else:
         base = campaign.scenario
-        parameters.load(base.parameters, relative_to=path.parent)
+        parameters.load(base.parameters, relative_to=path.parent, source=path)
     return campaign, base
 
 

@@ -1,0 +1,164 @@
+"""Command line: parse, delegate to :mod:`emaprog.api`, say where results went.
+
+Exit codes: 0 success; 1 internal error; 2 invalid input; 3 sweep regressed
+against its baseline.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+from pathlib import Path
+from typing import Annotated, Callable, Optional
+
+import typer
+
+from . import __version__
+from .errors import InputError
+
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    help="emaprog: fault identification and prognostics for flight-control EMAs.",
+    context_settings={"help_option_names": ["-h", "--help"]},
+)
+
+EXIT_INPUT = 2
+EXIT_INTERNAL = 1
+
+# ------------------------------------------------------------ shared options
+OutputDir = Annotated[Optional[Path], typer.Option("--output", "-o", help="Output folder.")]
+ScenarioOption = Annotated[
+    Optional[Path],
+    typer.Option("--scenario", "-s", help="Scenario YAML whose identify: block (and parameter set) to use."),
+]
+ParametersOption = Annotated[
+    str, typer.Option("--parameters", "-p", help="Parameter set: shipped name or path to a YAML file.")
+]
+
+
+def _fail(code: int, message: str) -> None:
+    typer.echo(f"emaprog: {message}", err=True)
+    raise typer.Exit(code)
+
+
+def guarded(func: Callable) -> Callable:
+    """Map InputError to exit 2 with one message; anything else to exit 1."""
+
+    @functools.wraps(func)
+    def wrapper(*args, **kwargs):
+        try:
+            return func(*args, **kwargs)
+        except InputError as exc:
+            _fail(EXIT_INPUT, f"invalid input: {exc}")
+        except KeyboardInterrupt:
+            _fail(130, "interrupted")
+        except typer.Exit:
+            raise
+        except Exception as exc:  # noqa: BLE001 - the last line of defence
+            if os.environ.get("EMAPROG_DEBUG"):
+                raise
+            _fail(EXIT_INTERNAL, f"internal error: {type(exc).__name__}: {exc} "
+                                 "(set EMAPROG_DEBUG=1 for the traceback)")
+
+    return wrapper
+
+
+def _version(value: bool):
+    if value:
+        typer.echo(f"emaprog {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def main(
+    version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True,
+                                          help="Print the version and exit.")] = False,
+):
+    """emaprog: fault identification and prognostics for flight-control EMAs."""
+
+
+@app.command(epilog="Example: emaprog check configs/*.yaml campaigns/*.yaml")
+@guarded
+def check(files: Annotated[list[Path], typer.Argument(help="Scenario or campaign YAML files.")]):
+    """Validate scenario and campaign files; run nothing."""
+    from . import api
+
+    failures = 0
+    for path in files:
+        try:
+            for line in api.check([path]):
+                typer.echo(f"ok  {line}")
+        except InputError as exc:
+            failures += 1
+            typer.echo(f"emaprog: invalid input: {exc}", err=True)
+    if failures:
+        raise typer.Exit(EXIT_INPUT)
+
+
+@app.command(epilog="Example: emaprog simulate configs/fig10-multiple-faults.yaml -o out/fig10.parquet --plot")
+@guarded
+def simulate(
+    scenario: Annotated[Path, typer.Argument(help="Scenario YAML.")],
+    output: Annotated[Optional[Path], typer.Option("--output", "-o", help="Trace Parquet to write.")] = None,
+    model: Annotated[str, typer.Option("--model", "-m", help="reference | monitor")] = "reference",
+    plot: Annotated[bool, typer.Option("--plot", help="Also write a PNG beside the trace.")] = False,
+):
+    """Simulate a scenario on the Reference (default) or Monitor Model and write its trace."""
+    from . import api
+
+    if model not in ("reference", "monitor"):
+        raise InputError("--model", f"unknown model '{model}' (allowed: reference, monitor)")
+    path, figure = api.simulate(scenario, output, model, plot)
+    typer.echo(f"trace: {path}")
+    if figure:
+        typer.echo(f"plot: {figure}")
+
+
+@app.command(epilog="Example: emaprog identify out/fig10.parquet -o out/fig10-report")
+@guarded
+def identify(
+    trace: Annotated[Path, typer.Argument(help="Measured trace (Parquet, SPEC 4 columns).")],
+    scenario: ScenarioOption = None,
+    output: OutputDir = None,
+):
+    """Identify fault magnitudes in a measured trace with the GA over the Monitor Model."""
+    from . import api
+
+    report, folder = api.identify(trace, scenario, output)
+    typer.echo(api.verdict_text(report))
+    typer.echo(f"report: {folder / 'report.md'}")
+
+
+@app.command(epilog="Example: emaprog calibrate -o out/calibration")
+@guarded
+def calibrate(parameters: ParametersOption = "default", output: OutputDir = None,
+              write: Annotated[bool, typer.Option("--write/--no-write",
+                               help="Store the calibrated values in the parameter set.")] = True):
+    """Fit the Monitor Model's equivalents and eccentricity gain to the Reference Model."""
+    from . import api
+
+    result, folder = api.calibrate(parameters, output, write)
+    typer.echo(f"eccentricity_gain c = {result['eccentricity_gain']:.4f} "
+               f"(r^2 = {result['r_squared']:.4f}); torque_gain_scale = "
+               f"{result['torque_gain_scale']:.4f}")
+    typer.echo(f"calibration: {folder / 'calibration.json'}")
+
+
+@app.command(epilog="Example: emaprog sweep campaigns/quick.yaml -o out/quick --workers 2")
+@guarded
+def sweep(
+    campaign: Annotated[Path, typer.Argument(help="Campaign YAML.")],
+    output: OutputDir = None,
+    workers: Annotated[Optional[int], typer.Option("--workers", "-w", min=1,
+                       help="Local worker processes (default: all cores).")] = None,
+    scheduler: Annotated[Optional[str], typer.Option("--scheduler",
+                         help="Address of a Dask distributed scheduler.")] = None,
+    resume: Annotated[bool, typer.Option("--resume", help="Skip finished cases.")] = False,
+    baseline: Annotated[Optional[Path], typer.Option("--baseline",
+                        help="summary.json to compare with; exit 3 if worse.")] = None,
+):
+    """Run a Monte-Carlo campaign of simulate + identify cases (resumable)."""
+    _fail(EXIT_INTERNAL, "sweep is not implemented yet (issue: Monte-Carlo fault campaigns); "
+          "nothing was run")
+
