@@ -5,12 +5,18 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Literal
 
+from . import __version__
 from . import parameters as parameter_sets
 from .errors import InputError
+from .faults import flatten, nested
+from .identification import check_sampling, identify_trace
+from .identification import result as verdicts
 from .models import monitor, reference
-from .report import plot_trace
-from .scenario import Scenario, load_any, load_scenario
-from .storage import Trace, write_trace
+from .models.common import inputs_from_trace
+from .report import (identification_summary, plot_convergence, plot_fit, plot_trace,
+                     report_markdown, write_json)
+from .scenario import IdentifySettings, Scenario, load_any, load_scenario, parse_scenario
+from .storage import Trace, read_trace, write_trace
 
 Model = Literal["reference", "monitor"]
 
@@ -58,3 +64,75 @@ def simulate(scenario_path: str | Path, output: str | Path | None = None,
         figure = plot_trace(trace, output.with_suffix(".png"),
                             f"{scenario.name} ({model} model)")
     return output, figure
+
+
+def _trace_scenario(trace: Trace, source: Path) -> Scenario | None:
+    """The scenario a trace made by ``simulate`` carries in its metadata, if any."""
+    data = (trace.metadata or {}).get("scenario")
+    if data is None:
+        return None
+    return parse_scenario(data, f"{source} (embedded scenario)")
+
+
+def identify(trace_path: str | Path, scenario_path: str | Path | None = None,
+             output: str | Path | None = None, show_progress: bool = True) -> tuple[dict, Path]:
+    """Identify the faults in a measured trace and write report.json, report.md and figures.
+
+    Settings and parameter set come from ``scenario_path`` when given, else
+    from the scenario embedded in the trace, else the defaults. Truth and error
+    are reported when the trace carries its scenario (a simulated trace).
+    """
+    trace_path = Path(trace_path)
+    trace = read_trace(trace_path)
+    embedded = _trace_scenario(trace, trace_path)
+    scenario = load_scenario(scenario_path) if scenario_path is not None else None
+    if scenario is not None:
+        params = scenario_parameters(scenario, scenario_path)
+    elif embedded is not None:
+        params = parameter_sets.load(embedded.parameters, relative_to=trace_path.parent,
+                                     source=f"{trace_path} (embedded scenario)")
+    else:
+        params = parameter_sets.load("default")
+    basis = scenario or embedded
+    settings = basis.identify if basis is not None else IdentifySettings()
+    check_sampling(trace, params, str(trace_path))
+    inp = inputs_from_trace(trace, basis.load if basis is not None else None)
+    result = identify_trace(trace, inp, params, settings, show_progress=show_progress)
+
+    truth = flatten(embedded.faults) if embedded is not None else None
+    error = verdicts.errors(result.estimate, truth) if truth is not None else None
+    report = {
+        "estimate": nested(result.estimate),
+        "truth": nested(truth) if truth is not None else None,
+        "error": nested(error) if error is not None else None,
+        "health": verdicts.health(result.estimate, settings.estimate, params),
+        "short_circuit_phase": verdicts.faulty_phase(result.estimate),
+        "fitness": result.fitness,
+        "ga": {"estimate": nested(result.ga_estimate), "fitness": result.ga_fitness,
+               "generations": result.generations, "stopped_by": result.stopped_by,
+               "refined": result.refined, "logbook": result.logbook},
+        "evaluations": result.evaluations,
+        "elapsed_s": result.elapsed_s,
+        "seed": settings.ga.seed,
+        "settings": settings.model_dump(mode="json"),
+        "trace": str(trace_path),
+        "scenario": basis.name if basis is not None else None,
+        "parameters": params.source_file,
+        "emaprog_version": __version__,
+    }
+    folder = Path(output) if output else Path("out") / f"{trace_path.stem}-report"
+    folder.mkdir(parents=True, exist_ok=True)
+    identified = result.objective.simulate(result.estimate)
+    figures = {
+        "fit": plot_fit(trace, identified, result.objective.filter_width, folder / "fit.png"),
+        "convergence": plot_convergence(result.logbook, folder / "convergence.png"),
+    }
+    report["figures"] = {name: path.name for name, path in figures.items()}
+    write_json(folder / "report.json", report)
+    (folder / "report.md").write_text(report_markdown(report))
+    return report, folder
+
+
+def verdict_text(report: dict) -> str:
+    """A few lines a person reads on the terminal after ``identify``."""
+    return identification_summary(report)

@@ -96,6 +96,8 @@ class Monitor(_Section):
     )
     eccentricity_gain: Pos = Field(description="[-] c in Z = c * zeta")
     torque_gain_scale: Pos = Field(description="[-] nominal torque/back-EMF gain correction")
+    commutation_loss: Annotated[float, Field(strict=True, ge=0, le=1e-3)] = Field(
+        0.0, description="[s/rad] torque-per-ampere drop with motor speed (commutation dips)")
 
 
 class Threshold(_Section):

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import json
+import os
 from pathlib import Path
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
 
 from .storage import Trace  # noqa: E402
 
@@ -39,3 +42,136 @@ def plot_trace(trace: Trace, path: str | Path, title: str = "") -> Path:
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def write_json(path: str | Path, data: dict) -> Path:
+    """Write JSON atomically (temporary name, then rename)."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(json.dumps(data, indent=2, default=float) + "\n")
+    os.replace(tmp, path)
+    return path
+
+
+def plot_fit(trace: Trace, identified: dict[str, np.ndarray], filter_width: int,
+             path: str | Path) -> Path:
+    """Measured vs identified Monitor current (both low-passed as in the fitness) and position."""
+    from .identification.objective import low_pass
+
+    t = trace.time
+    fig, ax = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
+    ax[0].plot(t, low_pass(trace["current"], filter_width), lw=0.9, label="measured (1 ms mean)")
+    ax[0].plot(t, low_pass(identified["current"], filter_width), lw=0.9, ls="--",
+               label="identified Monitor Model")
+    ax[0].set_ylabel("equivalent current [A]")
+    ax[0].legend(loc="upper right")
+    ax[1].plot(t, trace["command"], lw=0.8, color="0.5", label="command")
+    ax[1].plot(t, trace["position"], lw=0.9, label="measured")
+    ax[1].plot(t, identified["position"], lw=0.9, ls="--", label="identified Monitor Model")
+    ax[1].set_ylabel("surface position [rad]")
+    ax[1].set_xlabel("time [s]")
+    ax[1].legend(loc="upper right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
+
+
+def plot_convergence(logbook: list[dict], path: str | Path) -> Path:
+    """GA best and mean fitness per generation (log scale)."""
+    gen = [r["gen"] for r in logbook]
+    fig, ax = plt.subplots(figsize=(7, 4))
+    ax.semilogy(gen, [r["best"] for r in logbook], label="best")
+    ax.semilogy(gen, [r["mean"] for r in logbook], label="mean")
+    ax.set_xlabel("generation")
+    ax.set_ylabel("fitness [-]")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
+
+
+ROWS = (  # (label, path in the nested report shape, unit, format)
+    ("friction multiplier", ("friction",), "-", "{:.3f}"),
+    ("backlash", ("backlash",), "rad", "{:.2e}"),
+    ("short circuit A", ("short_circuit", "a"), "-", "{:.3f}"),
+    ("short circuit B", ("short_circuit", "b"), "-", "{:.3f}"),
+    ("short circuit C", ("short_circuit", "c"), "-", "{:.3f}"),
+    ("eccentricity zeta", ("eccentricity", "zeta"), "-", "{:.3f}"),
+    ("eccentricity phase", ("eccentricity", "phase"), "rad", "{:.2f}"),
+)
+
+
+def _pick(tree: dict | None, keys: tuple[str, ...]):
+    for key in keys:
+        if tree is None:
+            return None
+        tree = tree[key]
+    return tree
+
+
+def _fmt(value, fmt: str) -> str:
+    return "—" if value is None else fmt.format(value)
+
+
+def identification_summary(report: dict) -> str:
+    health = ", ".join(f"{fault} {verdict}" for fault, verdict in report["health"].items())
+    lines = [f"health: {health}"]
+    phase = report.get("short_circuit_phase")
+    if report["health"].get("short_circuit", "nominal") != "nominal" and phase:
+        lines.append(f"short circuit on phase {phase.upper()}")
+    for label, keys, unit, fmt in ROWS:
+        est = _fmt(_pick(report["estimate"], keys), fmt)
+        line = f"  {label:20s} {est:>10s} {unit}"
+        if report["truth"] is not None:
+            line += (f"   (true {_fmt(_pick(report['truth'], keys), fmt)}, "
+                     f"error {_fmt(_pick(report['error'], keys), fmt)})")
+        lines.append(line)
+    lines.append(f"fitness {report['fitness']:.3e} after {report['evaluations']} Monitor runs "
+                 f"in {report['elapsed_s']:.1f} s")
+    return "\n".join(lines)
+
+
+def report_markdown(report: dict) -> str:
+    truth = report["truth"] is not None
+    head = "| quantity | unit | estimate | GA best |" + (" truth | error |" if truth else "")
+    rule = "|---|---|---|---|" + ("---|---|" if truth else "")
+    rows = []
+    for label, keys, unit, fmt in ROWS:
+        cells = [label, unit, _fmt(_pick(report["estimate"], keys), fmt),
+                 _fmt(_pick(report["ga"]["estimate"], keys), fmt)]
+        if truth:
+            cells += [_fmt(_pick(report["truth"], keys), fmt), _fmt(_pick(report["error"], keys), fmt)]
+        rows.append("| " + " | ".join(cells) + " |")
+    health = "\n".join(f"| {fault} | {verdict} |" for fault, verdict in report["health"].items())
+    ga = report["ga"]
+    return f"""# Fault identification: {report['scenario'] or report['trace']}
+
+Trace `{report['trace']}`, parameter set `{report['parameters']}`, emaprog {report['emaprog_version']}.
+
+## Health
+
+| fault | verdict |
+|---|---|
+{health}
+
+Faulty phase (largest shorted fraction): {report['short_circuit_phase'] or 'none'}.
+
+## Estimates
+
+{head}
+{rule}
+{chr(10).join(rows)}
+
+Fitness {report['fitness']:.4e} (GA best {ga['fitness']:.4e}; refined: {ga['refined']}).
+{ga['generations']} generations (stopped by {ga['stopped_by']}), {report['evaluations']} Monitor
+Model runs, {report['elapsed_s']:.2f} s, GA seed {report['seed']}.
+
+## Figures
+
+![measured vs identified](fit.png)
+
+![GA convergence](convergence.png)
+"""

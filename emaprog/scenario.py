@@ -185,6 +185,9 @@ class IdentifySettings(Strict):
     signals: Signals = Signals()
     ga: GASettings = GASettings()
     refine: bool = True
+    nominal_correction: bool = Field(
+        True, description="subtract the healthy Reference-Monitor difference from the measured "
+                          "signals before fitting (see emaprog.identification.objective)")
 
     @model_validator(mode="after")
     def _unique(self):

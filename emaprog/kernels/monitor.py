@@ -90,13 +90,21 @@ def equivalent_branch_step(current, current_ref, gain, resistance, inductance, o
 
 @njit(cache=True)
 def simulate_monitor(command, load_torque, load_stiffness, elec, mech, ctrl, sens, faults,
-                     short_circuit_model, eccentricity_model, gain_scale, substeps,
-                     position, speed, current, motor_angle):
+                     short_circuit_model, eccentricity_model, gain_scale, commutation_loss,
+                     substeps, position, speed, current, motor_angle):
     """Run the Monitor Model over ``command.size`` controller periods.
 
     Same sampling contract as the Reference kernel: row k holds the feedback at
     ``k T`` (offset and ADC applied, no noise) and the current averaged over the
     period ending at ``k T``. ``faults.ecc_magnitude`` is Z (already ``c zeta``).
+
+    ``gain_scale`` [-] and ``commutation_loss`` [s/rad] are the calibrated
+    nominal equivalents: the torque per equivalent ampere is
+    ``gain_scale 2 k_e (1 - commutation_loss |omega|)``. The second term stands
+    for the Reference motor's commutation torque dips, whose share of a
+    sector grows with speed (the incoming phase's current rise is limited by
+    ``Vdc - 2E``); without it the Monitor explains the missing torque at speed
+    with extra dry friction.
     """
     n = command.size
     dt = ctrl.period / substeps
@@ -132,8 +140,9 @@ def simulate_monitor(command, load_torque, load_stiffness, elec, mech, ctrl, sen
             gain = base_gain * f_psc * (1.0 - faults.ecc_magnitude * shape)
             i = equivalent_branch_step(i, current_ref, gain, base_r * f_psc, base_l * f_l,
                                        omega_m, elec.dc_bus_voltage, dt)
+            torque = gain * i * max(0.0, 1.0 - commutation_loss * abs(omega_m))
             theta_m, omega_m, theta_s, omega_s, _, _ = mechanics_step(
-                theta_m, omega_m, theta_s, omega_s, gain * i, load_torque[k], load_stiffness,
+                theta_m, omega_m, theta_s, omega_s, torque, load_torque[k], load_stiffness,
                 faults.friction, faults.backlash, mech, dt)
             mean_current += i
         mean_current /= substeps
@@ -156,8 +165,8 @@ def moving_average(x, width, out):
 
 @njit(cache=True, parallel=True)
 def evaluate_population(candidates, command, load_torque, load_stiffness, elec, mech, ctrl, sens,
-                        short_circuit_model, eccentricity_model, gain_scale, substeps,
-                        target_current, target_position, target_speed, weights, filter_width,
+                        short_circuit_model, eccentricity_model, gain_scale, commutation_loss,
+                        substeps, target_current, target_position, target_speed, weights, filter_width,
                         first_sample, fitness):
     """Fitness of every candidate in one call (parallel over candidates).
 
@@ -191,8 +200,8 @@ def evaluate_population(candidates, command, load_torque, load_stiffness, elec, 
         cur = np.empty(n)
         ang = np.empty(n)
         simulate_monitor(command, load_torque, load_stiffness, elec, mech, ctrl, sens, faults,
-                        short_circuit_model, eccentricity_model, gain_scale, substeps,
-                        pos, spd, cur, ang)
+                        short_circuit_model, eccentricity_model, gain_scale, commutation_loss,
+                        substeps, pos, spd, cur, ang)
         total = 0.0
         filtered = np.empty(n)
         signals = (cur, pos, spd)

@@ -27,6 +27,15 @@ def inputs(scenario: Scenario, params: Parameters) -> Inputs:
     return Inputs(t, cmd, torque, stiffness)
 
 
+def inputs_from_trace(trace, load_spec=None) -> Inputs:
+    """Inputs of a measured trace: its command, and the scenario's load where known."""
+    t = np.ascontiguousarray(trace.time)
+    if load_spec is None:
+        return Inputs(t, np.ascontiguousarray(trace["command"]), np.zeros(t.size), 0.0)
+    torque, stiffness = signals.load(load_spec, t)
+    return Inputs(t, np.ascontiguousarray(trace["command"]), torque, stiffness)
+
+
 def provenance(model: str, scenario: Scenario, params: Parameters, **extra) -> dict:
     """The ``emaprog`` metadata of a trace (SPEC 4)."""
     return {

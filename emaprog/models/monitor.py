@@ -19,23 +19,26 @@ SHORT_CIRCUIT_MODELS = {"modulated": SHORT_CIRCUIT_MODULATED, "averaged": SHORT_
 ECCENTRICITY_MODELS = {"pair": ECCENTRICITY_PAIR, "paper": ECCENTRICITY_PAPER}
 
 
-def model_flags(params: Parameters) -> tuple[int, int, float]:
-    """Kernel flags of the parameter set's monitor section: (PSC law, RE law, gain scale)."""
+def model_flags(params: Parameters) -> tuple[int, int, float, float]:
+    """Kernel arguments of the parameter set's monitor section.
+
+    (PSC law, RE law, torque gain scale [-], commutation loss [s/rad]).
+    """
     m = params.spec.monitor
     return (SHORT_CIRCUIT_MODELS[m.short_circuit_model], ECCENTRICITY_MODELS[m.eccentricity_model],
-            m.torque_gain_scale)
+            m.torque_gain_scale, m.commutation_loss)
 
 
 def run(params: Parameters, inp: Inputs, faults: FaultParams, numerics: Numerics = DEFAULT,
-        flags: tuple[int, int, float] | None = None) -> dict[str, np.ndarray]:
+        flags: tuple[int, int, float, float] | None = None) -> dict[str, np.ndarray]:
     """Run the Monitor kernel; ``faults.ecc_magnitude`` is Z. Returns trace columns."""
     n = inp.time.size
     names = ("position", "speed", "current", "motor_angle")
     out = {name: np.empty(n) for name in names}
-    psc, ecc, scale = flags if flags is not None else model_flags(params)
+    flags = flags if flags is not None else model_flags(params)
     simulate_monitor(inp.command, inp.load_torque, inp.load_stiffness, params.electrical,
-                     params.mechanical, params.controller, params.sensors, faults, psc, ecc,
-                     scale, numerics.monitor_substeps, *(out[name] for name in names))
+                     params.mechanical, params.controller, params.sensors, faults, *flags,
+                     numerics.monitor_substeps, *(out[name] for name in names))
     return {"time": inp.time, "command": inp.command, **out}
 
 
