@@ -1,0 +1,71 @@
+"""The GA wrapper on functions with known minima, under bounds; reproducibility."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from emaprog.identification.ga import GAOptions, minimize
+
+
+def sphere(target):
+    def f(genes):
+        return np.sum((genes - target) ** 2, axis=1)
+    return f
+
+
+def test_finds_an_interior_minimum():
+    target = np.array([0.3, 0.7, 0.55, 0.1])
+    result = minimize(sphere(target), 4, GAOptions(population=48, generations=60), seed=3)
+    assert np.max(np.abs(result.best - target)) < 0.02
+    assert result.fitness < 1e-3
+
+
+def test_minimum_on_the_bound_is_reached_and_never_left():
+    seen = []
+
+    def f(genes):
+        seen.append(genes.copy())
+        return np.sum((genes - np.array([-0.5, 1.5])) ** 2, axis=1)  # optimum outside the box
+
+    result = minimize(f, 2, GAOptions(population=32, generations=40), seed=1)
+    everything = np.vstack(seen)
+    assert everything.min() >= 0.0 and everything.max() <= 1.0
+    assert np.allclose(result.best, [0.0, 1.0], atol=0.01)
+
+
+def test_circular_gene_wraps_across_zero():
+    """Minimum at 0.98 on a circle: reachable from either side, genes stay in [0, 1)."""
+    def f(genes):
+        d = (genes[:, 0] - 0.98 + 0.5) % 1.0 - 0.5
+        return d ** 2 + (genes[:, 1] - 0.5) ** 2
+
+    result = minimize(f, 2, GAOptions(population=32, generations=40), seed=5, circular=[True, False])
+    assert abs((result.best[0] - 0.98 + 0.5) % 1.0 - 0.5) < 0.01
+
+
+def test_rastrigin_global_minimum():
+    """Multimodal: the global minimum at the box centre among 100 local ones."""
+    def f(genes):
+        x = 10.24 * genes - 5.12
+        return 10 * x.shape[1] + np.sum(x ** 2 - 10 * np.cos(2 * np.pi * x), axis=1)
+
+    result = minimize(f, 2, GAOptions(population=80, generations=80, patience=40), seed=2)
+    assert result.fitness < 0.1
+
+
+def test_same_seed_same_result_and_logbook():
+    target = np.array([0.2, 0.4, 0.6])
+    a = minimize(sphere(target), 3, GAOptions(population=16, generations=10), seed=7)
+    b = minimize(sphere(target), 3, GAOptions(population=16, generations=10), seed=7)
+    c = minimize(sphere(target), 3, GAOptions(population=16, generations=10), seed=8)
+    assert np.array_equal(a.best, b.best) and list(a.logbook) == list(b.logbook)
+    assert not np.array_equal(a.best, c.best)
+
+
+def test_stagnation_stops_early_and_logbook_is_monotone():
+    result = minimize(lambda g: np.zeros(len(g)), 3, GAOptions(population=8, generations=100,
+                                                                patience=5), seed=0)
+    assert result.stopped_by == "stagnation" and result.generations == 5
+    best = [r["best"] for r in result.logbook]
+    assert all(b1 <= b0 for b0, b1 in zip(best, best[1:]))
+    assert result.evaluations == 8 + 5 * 8 - 5 * GAOptions().elite

@@ -1,0 +1,107 @@
+"""Monitor Model against the Reference Model: agreement, fault signatures, batch evaluator."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from emaprog.faults import HEALTHY
+from emaprog.identification.objective import Objective
+from emaprog.kernels.monitor import ECCENTRICITY_PAIR, SHORT_CIRCUIT_AVERAGED, short_circuit_factors
+from emaprog.models.common import inputs
+from emaprog.scenario import IdentifySettings
+from emaprog.storage import Trace
+
+from .conftest import low_pass, monitor_run, nrmse, reference_run, scenario
+
+FIG10 = {  # kernel-form faults at the paper's Fig. 10 levels (RM: zeta; MM: Z = c zeta)
+    "friction": HEALTHY._replace(friction=1.8),
+    "backlash": HEALTHY._replace(backlash=4e-4),
+    "short_a": HEALTHY._replace(short_a=0.2),
+    "short_b": HEALTHY._replace(short_b=0.2),
+    "short_c": HEALTHY._replace(short_c=0.2),
+    "eccentricity": HEALTHY._replace(ecc_magnitude=0.2),
+}
+
+
+def test_healthy_monitor_matches_reference():
+    """SPEC 10: equivalent-current NRMSE <= 5 %, position NRMSE <= 2 % (noise-free, 1 ms mean)."""
+    ref, _ = reference_run("chirp-nominal", HEALTHY)
+    mon = monitor_run("chirp-nominal", HEALTHY)
+    assert nrmse(low_pass(mon["current"]), low_pass(ref["current"])) < 0.05
+    assert nrmse(mon["position"], ref["position"]) < 0.02
+
+
+def test_fig10_faulty_monitor_matches_reference(params):
+    """All four faults at Fig. 10 levels: current NRMSE <= 10 %."""
+    ref, _ = reference_run("fig10-multiple-faults")
+    mon = monitor_run("fig10-multiple-faults")
+    assert nrmse(low_pass(mon["current"]), low_pass(ref["current"])) < 0.10
+
+
+@pytest.mark.parametrize("fault", sorted(FIG10))
+def test_fault_signature_error(params, fault):
+    """e_sig = ||dMM - dRM|| / ||dRM|| <= 0.35 (SPEC 1): each fault moves both models alike."""
+    f = FIG10[fault]
+    c = params.spec.monitor.eccentricity_gain
+    ref0, _ = reference_run("chirp-nominal", HEALTHY)
+    ref1, _ = reference_run("chirp-nominal", f)
+    mon0 = monitor_run("chirp-nominal", HEALTHY)
+    mon1 = monitor_run("chirp-nominal", f._replace(ecc_magnitude=c * f.ecc_magnitude))
+    d_ref = low_pass(ref1["current"]) - low_pass(ref0["current"])
+    d_mon = low_pass(mon1["current"]) - low_pass(mon0["current"])
+    e_sig = np.linalg.norm((d_mon - d_ref)[100:]) / np.linalg.norm(d_ref[100:])
+    assert e_sig < 0.35, e_sig
+
+
+def test_averaged_short_circuit_is_the_sector_mean_of_the_modulated_law():
+    """Eq. 1-2 vs Eq. 3-4: averaged over the six sectors, both give the same gain factor."""
+    n = (0.7, 1.0, 0.9)
+    angles = np.linspace(0, 2 * np.pi, 6000, endpoint=False)
+    modulated = np.mean([short_circuit_factors(a, *n, 0)[0] for a in angles])
+    averaged = short_circuit_factors(0.3, *n, SHORT_CIRCUIT_AVERAGED)[0]
+    assert modulated == pytest.approx(averaged, rel=1e-3)
+    assert ECCENTRICITY_PAIR == 0
+
+
+def objective_for(name: str, params):
+    sc = scenario(name)
+    ref, _ = reference_run(name)
+    return Objective(Trace(ref), inputs(sc, params), params, IdentifySettings())
+
+
+def test_batch_evaluator_equals_single_runs(params):
+    objective = objective_for("fig10-multiple-faults", params)
+    rng = np.random.default_rng(0)
+    genes = rng.random((9, objective.dims))
+    batch = objective(genes)
+    singles = np.array([objective(g[None])[0] for g in genes])
+    assert np.allclose(batch, singles, rtol=0, atol=1e-15)
+    assert objective.evaluations == 18
+
+
+@pytest.mark.parametrize("quantity,truth,span", [
+    ("friction", 1.8, 0.6), ("backlash", 4e-4, 3e-4), ("short_circuit_a", 0.2, 0.15),
+    ("eccentricity_zeta", 0.2, 0.15),
+])
+def test_error_surface_has_its_minimum_at_the_truth(params, quantity, truth, span):
+    """Along each fault axis through the Fig. 10 truth, the fitness is lowest near the truth.
+
+    Tolerance: one grid step either way (the GA's target accuracy is tighter only
+    because it also uses the refined local search).
+    """
+    from emaprog.faults import flatten
+
+    objective = objective_for("fig10-multiple-faults", params)
+    values = flatten(scenario("fig10-multiple-faults").faults)
+    grid = np.linspace(truth - span, truth + span, 13)
+    grid = grid[grid >= 0]
+    rows = []
+    for x in grid:
+        v = dict(values)
+        v[quantity] = float(x)
+        rows.append(objective.genes_for(v))
+    fitness = objective(np.array(rows))
+    step = grid[1] - grid[0]
+    assert abs(grid[np.argmin(fitness)] - truth) <= 1.01 * step
+    assert fitness[0] > 1.5 * fitness.min() and fitness[-1] > 1.5 * fitness.min()
