@@ -16,7 +16,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .bldc import NEGATIVE_PHASE, PHASE_OFFSET, POSITIVE_PHASE, TWO_PI, sector
+from .bldc import IDLE_PHASE, NEGATIVE_PHASE, PHASE_OFFSET, POSITIVE_PHASE, TWO_PI, sector
 from .control import clip, controller_update, quantize
 from .mechanics import mechanics_step
 from .structs import FaultParams
@@ -28,8 +28,8 @@ ECCENTRICITY_PAPER = 1
 
 
 @njit(cache=True)
-def short_circuit_factors(theta_e, n_a, n_b, n_c, model):
-    """PSC modulating function: (gain and resistance factor, inductance factor) [-].
+def sector_short_circuit_factors(s6, n_a, n_b, n_c, model):
+    """PSC modulating function in commutation sector ``s6``: (gain and resistance, inductance) [-].
 
     ``model`` SHORT_CIRCUIT_MODULATED (paper Eq. 3-4): mean working fraction of
     the two active phases, ``(N_p + N_q)/2``, and ``(N_p^2 + N_q^2)/2`` for the
@@ -39,12 +39,17 @@ def short_circuit_factors(theta_e, n_a, n_b, n_c, model):
     if model == SHORT_CIRCUIT_AVERAGED:
         n_eq = (n_a + n_b + n_c) / 3.0
         return n_eq, n_eq * n_eq
-    s6 = sector(theta_e)
     p = POSITIVE_PHASE[s6]
     q = NEGATIVE_PHASE[s6]
     n_p = n_a if p == 0 else (n_b if p == 1 else n_c)
     n_q = n_a if q == 0 else (n_b if q == 1 else n_c)
     return 0.5 * (n_p + n_q), 0.5 * (n_p * n_p + n_q * n_q)
+
+
+@njit(cache=True)
+def short_circuit_factors(theta_e, n_a, n_b, n_c, model):
+    """PSC modulating function at electrical angle ``theta_e`` [rad] (see the sector form)."""
+    return sector_short_circuit_factors(sector(theta_e), n_a, n_b, n_c, model)
 
 
 @njit(cache=True)
@@ -54,35 +59,34 @@ def sawtooth(x):
 
 
 @njit(cache=True)
-def eccentricity_shape(theta_e, phi, model):
-    """RE shape function ``s``; the gain is multiplied by ``1 - Z s`` [-].
+def eccentricity_shape(theta_e, s6, phi, model):
+    """RE shape function ``s`` in sector ``s6``; the gain is multiplied by ``1 - Z s`` [-].
 
     ECCENTRICITY_PAIR (default), derived from the Reference law
     ``k_x = k (1 + zeta cos(theta_e + phi + beta_x))``: on the flat top the
     active pair (p driven +, q driven -) has gain ``k (2 + zeta (m_p + m_q))``,
-    so ``s = -(cos(theta_e + phi + beta_p) + cos(theta_e + phi + beta_q))`` and
-    ``Z = zeta / 2`` in theory (c = 0.5; ``calibrate`` measures it).
+    so ``s = -(cos(theta_e + phi + beta_p) + cos(theta_e + phi + beta_q))``,
+    which equals ``cos(theta_e + phi + beta_idle)`` because the three cosines
+    sum to zero; ``Z = zeta / 2`` in theory (c = 0.5; ``calibrate`` measures it).
     ECCENTRICITY_PAPER: the paper's Eq. 5,
     ``s = cos(theta_e + phi) + sawtooth(6 theta_e - pi) sin(theta_e + phi)``.
     """
     if model == ECCENTRICITY_PAPER:
         return math.cos(theta_e + phi) + sawtooth(6.0 * theta_e - math.pi) * math.sin(theta_e + phi)
-    s6 = sector(theta_e)
-    return -(math.cos(theta_e + phi + PHASE_OFFSET[POSITIVE_PHASE[s6]])
-             + math.cos(theta_e + phi + PHASE_OFFSET[NEGATIVE_PHASE[s6]]))
+    return math.cos(theta_e + phi + PHASE_OFFSET[IDLE_PHASE[s6]])
 
 
 @njit(cache=True)
-def equivalent_branch_step(current, current_ref, gain, resistance, inductance, omega, vdc, dt):
+def equivalent_branch_step(current, current_ref, gain, resistance, a, omega, vdc):
     """Exact RL update of the equivalent branch under a saturated ideal regulator [A].
 
     The regulator applies the voltage that brings the current to ``current_ref``
-    at the end of the step (``i' = a i + (1 - a)(V - E)/R``, ``a = exp(-R dt/L)``),
-    clipped to the bridge's +/-Vdc: the slew-rate limit of the real H-bridge
-    without its switching ripple.
+    at the end of the step (``i' = a i + (1 - a)(V - E)/R``, with the decay
+    factor ``a = exp(-R dt/L)`` [-] precomputed per sector), clipped to the
+    bridge's +/-Vdc: the slew-rate limit of the real H-bridge without its
+    switching ripple.
     """
     emf = gain * omega
-    a = math.exp(-resistance * dt / inductance)
     needed = resistance * (current_ref - a * current) / (1.0 - a) + emf
     volts = clip(needed, vdc)
     return a * current + (1.0 - a) * (volts - emf) / resistance
@@ -115,6 +119,16 @@ def simulate_monitor(command, load_torque, load_stiffness, elec, mech, ctrl, sen
     base_gain = gain_scale * 2.0 * elec.back_emf_constant
     base_r = 2.0 * elec.phase_resistance
     base_l = 2.0 * elec.phase_inductance
+    # the PSC factors only change from sector to sector: tabulate them, and the RL decay
+    sector_gain = np.empty(6)
+    sector_r = np.empty(6)
+    sector_decay = np.empty(6)
+    for s6 in range(6):
+        f_psc, f_l = sector_short_circuit_factors(s6, n_a, n_b, n_c, short_circuit_model)
+        sector_gain[s6] = base_gain * f_psc
+        sector_r[s6] = base_r * f_psc
+        sector_decay[s6] = math.exp(-base_r * f_psc * dt / (base_l * f_l))
+    eccentric = faults.ecc_magnitude != 0.0
     theta_m = 0.0
     omega_m = 0.0
     theta_s = 0.0
@@ -135,11 +149,13 @@ def simulate_monitor(command, load_torque, load_stiffness, elec, mech, ctrl, sen
         mean_current = 0.0
         for _ in range(substeps):
             theta_e = pp * theta_m
-            f_psc, f_l = short_circuit_factors(theta_e, n_a, n_b, n_c, short_circuit_model)
-            shape = eccentricity_shape(theta_e, faults.ecc_phase, eccentricity_model)
-            gain = base_gain * f_psc * (1.0 - faults.ecc_magnitude * shape)
-            i = equivalent_branch_step(i, current_ref, gain, base_r * f_psc, base_l * f_l,
-                                       omega_m, elec.dc_bus_voltage, dt)
+            s6 = sector(theta_e)
+            gain = sector_gain[s6]
+            if eccentric:
+                gain *= 1.0 - faults.ecc_magnitude * eccentricity_shape(
+                    theta_e, s6, faults.ecc_phase, eccentricity_model)
+            i = equivalent_branch_step(i, current_ref, gain, sector_r[s6], sector_decay[s6],
+                                       omega_m, elec.dc_bus_voltage)
             torque = gain * i * max(0.0, 1.0 - commutation_loss * abs(omega_m))
             theta_m, omega_m, theta_s, omega_s, _, _ = mechanics_step(
                 theta_m, omega_m, theta_s, omega_s, torque, load_torque[k], load_stiffness,

@@ -1,0 +1,107 @@
+"""Speed figures of SPEC 8: a table, and with ``--json`` one JSON object as the last line.
+
+Every figure is the median of ``--repeat`` runs after a warm-up run (numba
+compilation is excluded; the on-disk kernel cache is used when present).
+Run: ``python benchmarks/run.py [--json] [--repeat N]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numba
+import numpy as np
+
+from emaprog import api, parameters
+from emaprog.faults import HEALTHY, to_params
+from emaprog.identification.objective import Objective
+from emaprog.models import monitor, reference
+from emaprog.models.common import inputs
+from emaprog.scenario import IdentifySettings, load_scenario
+
+ROOT = Path(__file__).resolve().parent.parent
+FIG10 = ROOT / "configs" / "fig10-multiple-faults.yaml"
+BARS = {  # SPEC 10: (bar, "max" or "min")
+    "reference_chirp_ms": (200.0, "max"),
+    "monitor_chirp_ms": (2.0, "max"),
+    "identify_s": (10.0, "max"),
+}
+
+
+def median_time(func, repeat: int) -> float:
+    func()  # warm-up: compile or load the cached kernels
+    samples = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        func()
+        samples.append(time.perf_counter() - start)
+    return statistics.median(samples)
+
+
+def measure(repeat: int) -> dict[str, float]:
+    scenario = load_scenario(FIG10)
+    params = parameters.load("default")
+    inp = inputs(scenario, params)
+    faults = to_params(scenario.faults)
+    figures: dict[str, float] = {}
+
+    numba.set_num_threads(1)  # "one core" figures
+    figures["reference_chirp_ms"] = 1e3 * median_time(
+        lambda: reference.run(params, inp, faults, scenario.seed), repeat)
+    figures["monitor_chirp_ms"] = 1e3 * median_time(
+        lambda: monitor.run(params, inp, HEALTHY), max(repeat, 20))
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+
+    trace = reference.simulate(scenario, params)
+    objective = Objective(trace, inp, params, IdentifySettings())
+    population = np.random.default_rng(0).random((256, objective.dims))
+    batch_s = median_time(lambda: objective(population), repeat)
+    figures["monitor_batch_per_s"] = population.shape[0] / batch_s
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "fig10.parquet"
+        api.simulate(FIG10, path)
+        figures["identify_s"] = median_time(
+            lambda: api.identify(path, None, Path(tmp) / "report", show_progress=False),
+            max(1, repeat // 2))
+    figures["sweep_cases_per_min"] = None  # the sweep lands with the campaign issue
+    figures["cores"] = numba.config.NUMBA_NUM_THREADS
+    return figures
+
+
+def table(figures: dict[str, float]) -> str:
+    lines = [f"{'figure':24s} {'value':>12s}  bar", "-" * 50]
+    for name, value in figures.items():
+        bar = BARS.get(name)
+        shown = "n/a" if value is None else f"{value:12.3f}"
+        verdict = ""
+        if bar and value is not None:
+            ok = value <= bar[0] if bar[1] == "max" else value >= bar[0]
+            verdict = f"{'<=' if bar[1] == 'max' else '>='} {bar[0]:g}  {'ok' if ok else 'MISSED'}"
+        lines.append(f"{name:24s} {shown:>12s}  {verdict}")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--json", action="store_true", help="print one JSON object as the last line")
+    parser.add_argument("--repeat", type=int, default=5, help="runs per figure (median)")
+    args = parser.parse_args(argv)
+    figures = measure(args.repeat)
+    print(table(figures))
+    if args.json:
+        print(json.dumps({k: (round(v, 4) if isinstance(v, float) else v)
+                          for k, v in figures.items()}))
+    return 0
+
+
+if __name__ == "__main__":
+    os.environ.setdefault("PYTHONHASHSEED", "0")
+    sys.exit(main())
