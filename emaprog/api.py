@@ -13,7 +13,7 @@ from .identification import check_sampling, identify_trace
 from .identification import result as verdicts
 from .models import monitor, reference
 from .models.common import inputs_from_trace
-from .report import (identification_summary, plot_convergence, plot_fit, plot_trace,
+from .report import (identification_summary, plot_calibration, plot_convergence, plot_fit, plot_trace,
                      report_markdown, write_json)
 from .scenario import IdentifySettings, Scenario, load_any, load_scenario, parse_scenario
 from .storage import Trace, read_trace, write_trace
@@ -136,3 +136,23 @@ def identify(trace_path: str | Path, scenario_path: str | Path | None = None,
 def verdict_text(report: dict) -> str:
     """A few lines a person reads on the terminal after ``identify``."""
     return identification_summary(report)
+
+
+def calibrate(parameters: str | Path = "default", output: str | Path | None = None,
+              write: bool = True) -> tuple[dict, Path]:
+    """Fit the Monitor's nominal equivalents and Z-zeta gain; write calibration.json + figure.
+
+    With ``write`` the calibrated values go into the parameter file itself.
+    """
+    from . import calibration
+
+    params = parameter_sets.load(str(parameters))
+    result = calibration.calibrate(params)
+    folder = Path(output) if output else Path("out") / "calibration"
+    folder.mkdir(parents=True, exist_ok=True)
+    result["figure"] = plot_calibration(result, folder / "z_vs_zeta.png").name
+    result["emaprog_version"] = __version__
+    write_json(folder / "calibration.json", result)
+    if write:
+        calibration.write_into(params.source_file, result)
+    return result, folder

@@ -138,14 +138,12 @@ def calibrate(parameters: ParametersOption = "default", output: OutputDir = None
     """Fit the Monitor Model's equivalents and eccentricity gain to the Reference Model."""
     from . import api
 
-    if not hasattr(api, "calibrate"):
-        _fail(EXIT_INTERNAL, "calibrate is not implemented yet (issue: Monitor Model and "
-              "calibration); the shipped parameter set holds hand-fitted values; nothing was run")
-
     result, folder = api.calibrate(parameters, output, write)
     typer.echo(f"eccentricity_gain c = {result['eccentricity_gain']:.4f} "
-               f"(r^2 = {result['r_squared']:.4f}); torque_gain_scale = "
-               f"{result['torque_gain_scale']:.4f}")
+               f"(r^2 = {result['r_squared']:.4f}); commutation_loss = "
+               f"{result['commutation_loss']:.3e} s/rad")
+    errors = ", ".join(f"{k} {v:.2f}" for k, v in result["signature_error"].items())
+    typer.echo(f"signature errors: {errors}")
     typer.echo(f"calibration: {folder / 'calibration.json'}")
 
 

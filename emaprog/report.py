@@ -175,3 +175,21 @@ Model runs, {report['elapsed_s']:.2f} s, GA seed {report['seed']}.
 
 ![GA convergence](convergence.png)
 """
+
+
+def plot_calibration(result: dict, path: str | Path) -> Path:
+    """Optimal Monitor Z per Reference zeta, with the least-squares line Z = c zeta."""
+    zeta = np.array(result["zeta"])
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.plot(zeta, result["optimal_z"], "o", label="optimal Z (Monitor vs Reference)")
+    line = np.linspace(0.0, zeta.max(), 50)
+    ax.plot(line, result["eccentricity_gain"] * line, "-",
+            label=f"Z = {result['eccentricity_gain']:.3f} zeta (r² = {result['r_squared']:.4f})")
+    ax.set_xlabel("Reference eccentricity zeta [-]")
+    ax.set_ylabel("Monitor shape amplitude Z [-]")
+    ax.grid(True, alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)

@@ -105,3 +105,24 @@ def test_error_surface_has_its_minimum_at_the_truth(params, quantity, truth, spa
     step = grid[1] - grid[0]
     assert abs(grid[np.argmin(fitness)] - truth) <= 1.01 * step
     assert fitness[0] > 1.5 * fitness.min() and fitness[-1] > 1.5 * fitness.min()
+
+
+def test_calibrate_finds_a_linear_z_zeta_law(tmp_path):
+    """SPEC 7: Z = c zeta with r^2 >= 0.95; every fault signature within 0.35; nothing written."""
+    from typer.testing import CliRunner
+
+    from emaprog.cli import app
+    from emaprog.parameters import builtin_dir
+
+    shipped = (builtin_dir() / "default.yaml").read_text()
+    result = CliRunner().invoke(app, ["calibrate", "-o", str(tmp_path), "--no-write"])
+    assert result.exit_code == 0, result.output
+    import json
+
+    cal = json.loads((tmp_path / "calibration.json").read_text())
+    assert cal["r_squared"] >= 0.95
+    assert 0.4 < cal["eccentricity_gain"] < 0.6  # theory for the pair shape: 0.5
+    assert 0.0 < cal["commutation_loss"] < 2e-4
+    assert max(cal["signature_error"].values()) < 0.35
+    assert (tmp_path / "z_vs_zeta.png").stat().st_size > 5000
+    assert (builtin_dir() / "default.yaml").read_text() == shipped
