@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from emaprog.calibration import SIGNATURE_FAULTS
 from emaprog.faults import HEALTHY
 from emaprog.identification.objective import Objective
 from emaprog.kernels.monitor import ECCENTRICITY_PAIR, SHORT_CIRCUIT_AVERAGED, short_circuit_factors
@@ -14,14 +15,7 @@ from emaprog.storage import Trace
 
 from .conftest import low_pass, monitor_run, nrmse, reference_run, scenario
 
-FIG10 = {  # kernel-form faults at the paper's Fig. 10 levels (RM: zeta; MM: Z = c zeta)
-    "friction": HEALTHY._replace(friction=1.8),
-    "backlash": HEALTHY._replace(backlash=4e-4),
-    "short_a": HEALTHY._replace(short_a=0.2),
-    "short_b": HEALTHY._replace(short_b=0.2),
-    "short_c": HEALTHY._replace(short_c=0.2),
-    "eccentricity": HEALTHY._replace(ecc_magnitude=0.2),
-}
+FIG10 = SIGNATURE_FAULTS  # kernel form at the paper's Fig. 10 levels (RM: zeta; MM: Z = c zeta)
 
 
 def test_healthy_monitor_matches_reference():
