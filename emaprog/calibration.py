@@ -27,6 +27,7 @@ from .kernels.monitor import evaluate_population
 from .identification.objective import FILTER_SECONDS, STARTUP_SECONDS, low_pass
 from .models import monitor, reference
 from .models.common import Inputs
+from .numerics import DEFAULT
 from .parameters import Parameters
 from .scenario import ChirpCommand, NoLoad
 
@@ -66,7 +67,7 @@ class Fit:
         zeros = np.zeros_like(self.target)
         evaluate_population(np.ascontiguousarray(rows), inp.command, inp.load_torque,
                             inp.load_stiffness, p.electrical, p.mechanical, p.controller,
-                            p.sensors, *flags, 4, self.target, zeros, zeros,
+                            p.sensors, *flags, DEFAULT.monitor_substeps, self.target, zeros, zeros,
                             np.array([1.0, 0.0, 0.0]), self.width, self.first, out)
         return out
 
