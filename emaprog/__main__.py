@@ -1,3 +1,6 @@
+"""``python -m emaprog``: the same command line as the ``emaprog`` script."""
+
 from .cli import app
 
-app(prog_name="emaprog")
+if __name__ == "__main__":  # spawned sweep workers import this module: run nothing then
+    app(prog_name="emaprog")

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Literal
+from typing import Literal, NamedTuple
 
 from . import __version__
 from . import parameters as parameter_sets
@@ -156,3 +156,135 @@ def calibrate(parameters: str | Path = "default", output: str | Path | None = No
     if write:
         calibration.write_into(params.source_file, result)
     return result, folder
+
+
+class SweepOutcome(NamedTuple):
+    folder: Path
+    summary: dict
+    ran: int  # cases run by this call (finished or failed)
+    skipped: int  # cases already finished by an earlier run (--resume)
+    failed: int  # cases without a result (see RESULTS_DIR/failures/)
+    regressions: list[str]  # figures worse than --baseline beyond their tolerance
+
+
+class SweepInterrupted(KeyboardInterrupt):
+    """Ctrl-C during a sweep; the message says what is on disk and how to go on."""
+
+
+def _read_baseline(path: Path) -> dict:
+    import json
+
+    from .campaign_summary import regression_figures
+
+    if not path.is_file():
+        raise InputError(path, "baseline file not found (give a summary.json of an earlier sweep)")
+    try:
+        data = json.loads(path.read_text())
+        regression_figures(data)
+    except (json.JSONDecodeError, UnicodeDecodeError):
+        raise InputError(path, "baseline is not valid JSON (give a summary.json of an earlier sweep)") from None
+    except (KeyError, TypeError, AttributeError):
+        raise InputError(path, "baseline lacks the summary keys errors, detection, false_alarms, "
+                         "isolation (give a summary.json of an earlier sweep)") from None
+    return data
+
+
+def sweep(campaign_path: str | Path, output: str | Path | None = None, workers: int | None = None,
+          scheduler: str | None = None, resume: bool = False, baseline: str | Path | None = None,
+          show_progress: bool = True) -> SweepOutcome:
+    """Run (or resume) a Monte-Carlo campaign and write its case dataset and summary (SPEC 6).
+
+    Cases run on ``workers`` local processes (default: all cores; 1 runs them in
+    this process) or, with ``scheduler``, on a Dask cluster. Each finished case
+    is on disk at once; Ctrl-C raises :class:`SweepInterrupted` after stopping
+    the workers. With ``baseline`` the summary is compared with an earlier one.
+    """
+    from . import campaign as campaigns
+    from .scenario import load_campaign
+
+    campaign_path = Path(campaign_path)
+    campaign, base = load_campaign(campaign_path)
+    params = campaigns.load_parameters(campaign_path, campaign, base)
+    reference_summary = _read_baseline(Path(baseline)) if baseline is not None else None
+    client = campaigns.connect(scheduler) if scheduler is not None else None
+    try:
+        return _sweep(campaign_path, campaign, base, params, output, workers, client,
+                      resume, baseline, reference_summary, show_progress)
+    finally:
+        if client is not None:
+            client.close()
+
+
+def _sweep(campaign_path: Path, campaign, base, params, output, workers, client, resume,
+           baseline, reference_summary, show_progress) -> SweepOutcome:
+    import os
+    import time
+
+    from . import campaign as campaigns
+    from . import progress
+    from .campaign_summary import ACCURACY, compare, error_values, markdown, summarize
+    from .report import plot_error_histograms, plot_parity
+
+    digest = campaigns.campaign_hash(campaign, base, params)
+    folder = Path(output) if output else Path("out") / campaign.name
+    store = campaigns.CaseStore(folder)
+    meta = {
+        "campaign": campaign.name, "campaign_file": str(campaign_path), "campaign_hash": digest,
+        "planned": campaign.cases, "seed": campaign.seed, "scenario": base.name,
+        "parameters": params.source_file, "emaprog_version": __version__,
+    }
+    store.open(campaign_path, digest, {**meta, "campaign_definition": campaign.model_dump(mode="json"),
+                                       "base_scenario": base.model_dump(mode="json"),
+                                       "parameter_values": params.values()}, resume)
+    finished = store.finished()
+    todo = [k for k in range(campaign.cases) if k not in finished]
+    specs = campaigns.case_specs(campaign, base, params, digest, todo)
+    workers = max(1, min(workers or os.cpu_count() or 1, len(todo) or 1))
+    counts = {"done": 0, "failed": 0}
+    start = time.perf_counter()
+    with progress.task(f"sweep {campaign.name}", len(todo), show_progress) as advance:
+
+        def on_result(result) -> None:
+            if isinstance(result, campaigns.Failure):
+                store.write_failure(result)
+                counts["failed"] += 1
+            else:
+                store.write_case(result, {**meta, "case_id": result["case_id"]})
+                counts["done"] += 1
+            advance(1, done=len(finished) + counts["done"], failed=counts["failed"])
+
+        try:
+            if client is not None and todo:
+                campaigns.run_dask(specs, client, on_result)
+            elif workers == 1 or not todo:
+                campaigns.run_serial(specs, on_result)
+            else:
+                campaigns.run_local(specs, workers, on_result)
+        except KeyboardInterrupt:
+            raise SweepInterrupted(
+                f"{len(finished) + counts['done']} of {campaign.cases} cases are stored in "
+                f"{store.cases}; run the same command with --resume to finish") from None
+    wall_s = time.perf_counter() - start
+
+    frame = store.read()
+    if frame.empty:
+        raise RuntimeError(f"no case of campaign '{campaign.name}' finished; the errors are in "
+                           f"{store.failures}")
+    summary = {**meta, "finished": int(len(frame)), "failed": len(store.failed()),
+               **summarize(frame, params)}
+    summary["run"] = {"ran": counts["done"] + counts["failed"], "skipped": len(finished),
+                      "wall_s": wall_s, "workers": None if client else workers,
+                      "scheduler": client.scheduler.address if client else None}
+    errors = {q: error_values(frame, q, params) for q in ACCURACY}
+    summary["figures"] = {
+        "parity": plot_parity(frame, folder / "parity.png").name,
+        "errors": plot_error_histograms(errors, {q: a.tolerance for q, a in ACCURACY.items()},
+                                        folder / "errors.png").name,
+    }
+    regressions = compare(summary, reference_summary) if reference_summary is not None else []
+    if reference_summary is not None:
+        summary["regression"] = {"baseline": str(baseline), "worse": regressions}
+    write_json(folder / "summary.json", summary)
+    (folder / "summary.md").write_text(markdown(summary, summary))
+    return SweepOutcome(folder, summary, counts["done"] + counts["failed"], len(finished),
+                        summary["failed"], regressions)

@@ -25,6 +25,7 @@ app = typer.Typer(
 
 EXIT_INPUT = 2
 EXIT_INTERNAL = 1
+EXIT_REGRESSED = 3
 
 # ------------------------------------------------------------ shared options
 OutputDir = Annotated[Optional[Path], typer.Option("--output", "-o", help="Output folder.")]
@@ -51,8 +52,8 @@ def guarded(func: Callable) -> Callable:
             return func(*args, **kwargs)
         except InputError as exc:
             _fail(EXIT_INPUT, f"invalid input: {exc}")
-        except KeyboardInterrupt:
-            _fail(130, "interrupted")
+        except KeyboardInterrupt as exc:
+            _fail(130, f"interrupted: {exc}" if str(exc) else "interrupted")
         except typer.Exit:
             raise
         except Exception as exc:  # noqa: BLE001 - the last line of defence
@@ -161,6 +162,22 @@ def sweep(
                         help="summary.json to compare with; exit 3 if worse.")] = None,
 ):
     """Run a Monte-Carlo campaign of simulate + identify cases (resumable)."""
-    _fail(EXIT_INTERNAL, "sweep is not implemented yet (issue: Monte-Carlo fault campaigns); "
-          "nothing was run")
+    from . import api
 
+    outcome = api.sweep(campaign, output, workers, scheduler, resume, baseline)
+    s = outcome.summary
+    typer.echo(f"cases: {s['finished']} of {s['planned']} finished ({outcome.ran} run now, "
+               f"{outcome.skipped} from earlier runs), {outcome.failed} failed")
+    fa = s["false_alarms"]
+    detection = ", ".join(f"{f} {d['rate']:.0%}" for f, d in s["detection"].items()
+                          if d["rate"] is not None)
+    typer.echo(f"detection: {detection or 'no faulty case'}; false alarms on healthy cases: "
+               f"{fa['flagged']} of {fa['healthy_cases']}")
+    typer.echo(f"summary: {outcome.folder / 'summary.md'}")
+    if outcome.regressions:
+        typer.echo(f"emaprog: regressed against {baseline}:", err=True)
+        for line in outcome.regressions:
+            typer.echo(f"  {line}", err=True)
+        raise typer.Exit(EXIT_REGRESSED)
+    if baseline is not None:
+        typer.echo(f"baseline {baseline}: no figure worse than its tolerance")

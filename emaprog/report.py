@@ -193,3 +193,61 @@ def plot_calibration(result: dict, path: str | Path) -> Path:
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return Path(path)
+
+
+QUANTITY_LABELS = {
+    "friction": "friction multiplier [-]",
+    "backlash": "backlash [rad]",
+    "short_circuit_a": "short circuit A [-]",
+    "short_circuit_b": "short circuit B [-]",
+    "short_circuit_c": "short circuit C [-]",
+    "eccentricity_zeta": "eccentricity zeta [-]",
+    "eccentricity_phase": "eccentricity phase [rad]",
+}
+
+
+def plot_parity(frame, path: str | Path) -> Path:
+    """True vs estimated value of every fault quantity over a campaign's cases."""
+    fig, axes = plt.subplots(2, 4, figsize=(14, 6.5))
+    healthy = frame["healthy_case"].to_numpy(bool)
+    for ax, (quantity, label) in zip(axes.flat, QUANTITY_LABELS.items()):
+        true, est = frame[f"true_{quantity}"].to_numpy(float), frame[f"est_{quantity}"].to_numpy(float)
+        ax.plot(true[~healthy], est[~healthy], "o", ms=3.5, alpha=0.7, label="faulty cases")
+        ax.plot(true[healthy], est[healthy], "x", ms=4, color="tab:green", label="healthy cases")
+        lo = float(min(true.min(initial=0.0), est.min(initial=0.0)))
+        hi = float(max(true.max(initial=1e-12), est.max(initial=1e-12)))
+        ax.plot([lo, hi], [lo, hi], "-", color="0.4", lw=0.8)
+        ax.set_title(label, fontsize=9)
+        ax.set_xlabel("true", fontsize=8)
+        ax.set_ylabel("estimated", fontsize=8)
+        ax.tick_params(labelsize=7)
+        ax.grid(True, alpha=0.3)
+    axes.flat[0].legend(fontsize=7)
+    axes.flat[-1].axis("off")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return Path(path)
+
+
+def plot_error_histograms(errors: dict[str, np.ndarray], tolerances: dict[str, float | None],
+                          path: str | Path) -> Path:
+    """Histogram of each quantity's error with its SPEC 10 tolerance band."""
+    fig, axes = plt.subplots(2, 4, figsize=(14, 6.5))
+    for ax, (quantity, values) in zip(axes.flat, errors.items()):
+        if values.size:
+            ax.hist(values, bins=min(30, max(5, values.size // 2)), color="tab:blue", alpha=0.8)
+        bar = tolerances.get(quantity)
+        if bar is not None:
+            for x in (-bar, bar):
+                ax.axvline(x, color="tab:red", ls="--", lw=0.9)
+        ax.set_title(QUANTITY_LABELS[quantity].replace("[-]", "error").replace("[rad]", "error [rad]")
+                     + (" (rel.)" if quantity == "friction" else ""), fontsize=9)
+        ax.set_ylabel("cases", fontsize=8)
+        ax.tick_params(labelsize=7)
+        ax.grid(True, alpha=0.3)
+    axes.flat[-1].axis("off")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return Path(path)

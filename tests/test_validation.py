@@ -134,11 +134,6 @@ def test_unknown_model_is_refused():
     assert result.exit_code == 2 and "--model" in result.output
 
 
-def test_sweep_says_it_is_not_there_yet():
-    result = runner.invoke(app, ["sweep", str(ROOT / "campaigns" / "quick.yaml")])
-    assert result.exit_code == 1 and "not implemented" in result.output
-
-
 def test_every_command_help_ends_with_an_example():
     for command in ("check", "simulate", "identify", "calibrate", "sweep"):
         result = runner.invoke(app, [command, "--help"])

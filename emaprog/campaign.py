@@ -1,0 +1,397 @@
+"""Monte-Carlo fault campaigns (SPEC 6): sampling, execution, and the resumable case dataset.
+
+A campaign is ``cases`` independent twin experiments on one base scenario:
+draw true faults from the campaign's distributions, simulate the noisy
+Reference Model, identify the faults with the GA over the Monitor Model, and
+store truth, estimate and error as one row.
+
+Reproducibility: case ``k`` draws everything (its faults, the Reference noise
+seed and the GA seed) from ``SeedSequence(seed, spawn_key=(k,))`` -- the same
+stream ``SeedSequence(seed).spawn(...)`` hands its k-th child -- so a case's
+numbers depend on the master seed and its index only, never on the worker that
+ran it, the number of workers or the order of completion.
+
+Storage (``RESULTS_DIR``):
+
+* ``manifest.json`` -- the campaign, its base scenario and parameter values,
+  and their hash; ``--resume`` refuses a campaign whose hash changed;
+* ``cases/case-NNNNNN.parquet`` -- one file per finished case, written under a
+  temporary dot-name and renamed, so a crash never leaves half a case and
+  Parquet readers never see the temporary;
+* ``failures/case-NNNNNN.json`` -- a case that raised: its error and
+  traceback; the campaign goes on, and ``--resume`` tries it again.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import signal
+import threading
+import time
+import traceback
+from collections.abc import Callable, Iterable, Iterator
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from . import __version__
+from . import parameters as parameter_sets
+from .errors import InputError
+from .faults import QUANTITIES, flatten
+from .identification import identify_trace
+from .identification import result as verdicts
+from .models import reference
+from .models.common import inputs
+from .parameters import Parameters
+from .report import write_json
+from .scenario import Campaign, Faults, IdentifySettings, Scenario
+
+FAULTS = ("friction", "backlash", "short_circuit", "eccentricity")
+SEED_LIMIT = 2**32  # scenario and GA seeds are uint32
+CASE_FILE = "case-{:06d}"
+
+
+# ---------------------------------------------------------------- sampling
+class CaseSpec(NamedTuple):
+    """Everything a worker needs to run one case; picklable, no open files."""
+
+    case_id: int
+    healthy: bool  # sampled as an all-healthy case (false-alarm check)
+    scenario: Scenario  # base scenario with this case's faults and noise seed
+    params: Parameters
+    settings: IdentifySettings  # with this case's GA seed
+    campaign_hash: str
+
+
+def identify_settings(campaign: Campaign, base: Scenario) -> IdentifySettings:
+    """The campaign's ``identify:`` block when it has one, else the base scenario's."""
+    return campaign.identify if "identify" in campaign.model_fields_set else base.identify
+
+
+def sample_case(campaign: Campaign, case_id: int) -> tuple[bool, Faults, int, int]:
+    """Draw case ``case_id``'s faults, Reference noise seed and GA seed.
+
+    Every draw is made whether or not its distribution is given, in a fixed
+    order, so adding a distribution to a campaign does not reshuffle the
+    others' streams. Returns (healthy, faults, noise_seed, ga_seed).
+    """
+    rng = np.random.default_rng(np.random.SeedSequence(campaign.seed, spawn_key=(case_id,)))
+    d = campaign.faults
+    healthy = bool(rng.random() < d.healthy_fraction)
+    draws = {
+        "friction": rng.random(), "backlash": rng.random(), "phase": int(rng.integers(3)),
+        "fraction": rng.random(), "zeta": rng.random(), "ecc_phase": rng.random(),
+    }
+    noise_seed, ga_seed = (int(s) for s in rng.integers(0, SEED_LIMIT, size=2))
+    if healthy:
+        return True, Faults(), noise_seed, ga_seed
+
+    def scaled(dist, u: float, healthy_value: float) -> float:
+        if dist is None:
+            return healthy_value
+        lo, hi = dist.uniform
+        return float(lo + u * (hi - lo))
+
+    short = {"a": 0.0, "b": 0.0, "c": 0.0}
+    if d.short_circuit is not None:
+        phase = "abc"[draws["phase"]] if d.short_circuit.phase == "any" else d.short_circuit.phase
+        short[phase] = scaled(d.short_circuit.fraction, draws["fraction"], 0.0)
+    ecc = {"zeta": 0.0, "phase": 0.0}
+    if d.eccentricity is not None:
+        ecc = {"zeta": scaled(d.eccentricity.zeta, draws["zeta"], 0.0),
+               "phase": scaled(d.eccentricity.phase, draws["ecc_phase"], 0.0)}
+    faults = Faults.model_validate({
+        "friction": scaled(d.friction, draws["friction"], 1.0),
+        "backlash": scaled(d.backlash, draws["backlash"], 0.0),
+        "short_circuit": short, "eccentricity": ecc,
+    })
+    return False, faults, noise_seed, ga_seed
+
+
+def case_specs(campaign: Campaign, base: Scenario, params: Parameters, campaign_hash: str,
+               case_ids: Iterable[int]) -> Iterator[CaseSpec]:
+    """The specs of the given cases (lazily: a large campaign is never all in memory)."""
+    settings = identify_settings(campaign, base)
+    for case_id in case_ids:
+        healthy, faults, noise_seed, ga_seed = sample_case(campaign, case_id)
+        scenario = Scenario.model_validate({
+            **base.model_dump(mode="json"),
+            "name": f"{campaign.name}-case-{case_id}",
+            "seed": noise_seed,
+            "faults": faults.model_dump(mode="json"),
+            "identify": settings.model_dump(mode="json"),
+        })
+        case_settings = IdentifySettings.model_validate({
+            **settings.model_dump(mode="json"),
+            "ga": {**settings.ga.model_dump(mode="json"), "seed": ga_seed},
+        })
+        yield CaseSpec(case_id, healthy, scenario, params, case_settings, campaign_hash)
+
+
+# ---------------------------------------------------------------- one case
+def run_case(spec: CaseSpec) -> dict:
+    """Simulate and identify one case; the SPEC 6 row (plain Python values)."""
+    start = time.perf_counter()
+    trace = reference.simulate(spec.scenario, spec.params)
+    simulated = time.perf_counter()
+    inp = inputs(spec.scenario, spec.params)
+    result = identify_trace(trace, inp, spec.params, spec.settings, show_progress=False)
+    truth = flatten(spec.scenario.faults)
+    error = verdicts.errors(result.estimate, truth)
+    health = verdicts.health(result.estimate, spec.settings.estimate, spec.params)
+    true_health = verdicts.health(truth, list(FAULTS), spec.params)
+    row: dict = {
+        "case_id": spec.case_id,
+        "healthy_case": spec.healthy,
+        "noise_seed": spec.scenario.seed,
+        "ga_seed": spec.settings.ga.seed,
+    }
+    for name in QUANTITIES:
+        row[f"true_{name}"] = float(truth[name])
+        row[f"est_{name}"] = float(result.estimate[name])
+        row[f"err_{name}"] = float("nan") if error[name] is None else float(error[name])
+    for fault in FAULTS:
+        row[f"health_{fault}"] = health.get(fault, "not estimated")
+        row[f"true_health_{fault}"] = true_health[fault]
+    row.update({
+        "true_short_circuit_phase": verdicts.faulty_phase(truth) or "none",
+        "est_short_circuit_phase": _detected_phase(result.estimate, health),
+        "fitness": float(result.fitness),
+        "evaluations": int(result.evaluations),
+        "generations": int(result.generations),
+        "simulate_s": simulated - start,
+        "identify_s": result.elapsed_s,
+    })
+    return row
+
+
+def _detected_phase(estimate: dict[str, float], health: dict[str, str]) -> str:
+    """The phase named faulty: the worst one, only when the short circuit is not nominal."""
+    if health.get("short_circuit", "nominal") == "nominal":
+        return "none"
+    return verdicts.faulty_phase(estimate) or "none"
+
+
+class Failure(NamedTuple):
+    case_id: int
+    error: str
+    traceback: str
+
+
+def run_case_safely(spec: CaseSpec) -> dict | Failure:
+    """:func:`run_case`, with any exception turned into a :class:`Failure` record."""
+    try:
+        return run_case(spec)
+    except Exception as exc:  # noqa: BLE001 - a failed case must not stop the campaign
+        return Failure(spec.case_id, f"{type(exc).__name__}: {exc}", traceback.format_exc())
+
+
+# ---------------------------------------------------------------- storage
+TIMING_COLUMNS = ("simulate_s", "identify_s")
+
+
+def campaign_hash(campaign: Campaign, base: Scenario, params: Parameters) -> str:
+    """Hash of what decides the cases' numbers: campaign, base scenario, parameter values."""
+    content = {
+        "campaign": campaign.model_dump(mode="json", exclude={"scenario"}),
+        "identify": identify_settings(campaign, base).model_dump(mode="json"),
+        "scenario": base.model_dump(mode="json"),
+        "parameters": params.values(),
+    }
+    return hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()
+
+
+class CaseStore:
+    """The results folder of one campaign: manifest, one Parquet file per case, failures."""
+
+    def __init__(self, folder: str | Path):
+        self.folder = Path(folder)
+        self.cases = self.folder / "cases"
+        self.failures = self.folder / "failures"
+        self.manifest = self.folder / "manifest.json"
+
+    def finished(self) -> set[int]:
+        """Ids of the cases whose file is complete (temporaries are dot-names, never listed)."""
+        if not self.cases.is_dir():
+            return set()
+        return {int(p.stem.split("-")[1]) for p in self.cases.glob("case-*.parquet")}
+
+    def failed(self) -> dict[int, str]:
+        if not self.failures.is_dir():
+            return {}
+        out = {}
+        for path in sorted(self.failures.glob("case-*.json")):
+            out[int(path.stem.split("-")[1])] = json.loads(path.read_text())["error"]
+        return out
+
+    def open(self, source: Path, digest: str, manifest: dict, resume: bool) -> None:
+        """Start or continue the campaign in this folder; refuses to mix campaigns."""
+        if self.manifest.is_file():
+            try:
+                stored = json.loads(self.manifest.read_text())["campaign_hash"]
+            except (json.JSONDecodeError, KeyError, UnicodeDecodeError):
+                raise InputError(self.manifest, "is not a readable campaign manifest; "
+                                 "choose another results folder") from None
+            if not resume:
+                raise InputError(self.folder, "already holds a campaign's results; pass --resume to "
+                                 "continue it, or choose another results folder (-o)")
+            if stored != digest:
+                raise InputError(source, "changed since the first run in "
+                                 f"{self.folder} (campaign, base scenario or parameter values "
+                                 "differ); --resume only continues the same campaign: use another "
+                                 "results folder (-o)")
+        elif self.finished():
+            raise InputError(self.folder, "holds case files but no manifest.json; "
+                             "choose another results folder (-o)")
+        self.cases.mkdir(parents=True, exist_ok=True)
+        for stale in self.cases.glob(".case-*"):  # temporaries of a killed run
+            stale.unlink()
+        if not self.manifest.is_file():
+            write_json(self.manifest, manifest)
+
+    def write_case(self, row: dict, provenance: dict) -> Path:
+        """One case as its own Parquet file, atomically, with provenance in the file metadata."""
+        table = pa.Table.from_pylist([row])
+        table = table.replace_schema_metadata({b"emaprog": json.dumps(provenance).encode()})
+        name = CASE_FILE.format(row["case_id"])
+        tmp = self.cases / f".{name}.{os.getpid()}.tmp"
+        pq.write_table(table, tmp)
+        os.replace(tmp, self.cases / f"{name}.parquet")
+        stale_failure = self.failures / f"{name}.json"
+        if stale_failure.exists():
+            stale_failure.unlink()
+        return self.cases / f"{name}.parquet"
+
+    def write_failure(self, failure: Failure) -> Path:
+        self.failures.mkdir(parents=True, exist_ok=True)
+        return write_json(self.failures / f"{CASE_FILE.format(failure.case_id)}.json",
+                          failure._asdict())
+
+    def read(self) -> pd.DataFrame:
+        """All finished cases, sorted by case id."""
+        files = sorted(self.cases.glob("case-*.parquet"))
+        if not files:
+            return pd.DataFrame()
+        frame = pd.concat([pq.read_table(f).to_pandas() for f in files], ignore_index=True)
+        return frame.sort_values("case_id", kind="stable").reset_index(drop=True)
+
+
+# ---------------------------------------------------------------- execution
+OnResult = Callable[[dict | Failure], None]
+
+
+def _worker_init(numba_threads: int) -> None:
+    """Local pool worker: leave Ctrl-C to the parent, share the cores without oversubscribing."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    import numba
+
+    numba.set_num_threads(max(1, min(numba_threads, numba.config.NUMBA_NUM_THREADS)))
+
+
+def run_serial(specs: Iterable[CaseSpec], on_result: OnResult) -> None:
+    """One worker: run the cases in this process (no pool to start)."""
+    for spec in specs:
+        on_result(run_case_safely(spec))
+
+
+def run_local(specs: Iterable[CaseSpec], workers: int, on_result: OnResult) -> None:
+    """A local process pool of ``workers`` spawned processes.
+
+    Each worker gets ``cores // workers`` numba threads (the GA's batched
+    evaluation is a parallel kernel), so workers x threads never exceeds the
+    cores. On Ctrl-C the pending cases are cancelled and the running ones are
+    stopped; every case finished before that is already on disk.
+    """
+    import multiprocessing
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+    threads = max(1, (os.cpu_count() or 1) // workers)
+    pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
+                               initializer=_worker_init, initargs=(threads,))
+    pending: set = set()
+    queue = iter(specs)
+    try:
+        # keep a bounded number of cases in flight: a million-case campaign is fed lazily
+        for spec in queue:
+            pending.add(pool.submit(run_case_safely, spec))
+            if len(pending) >= 2 * workers:
+                break
+        while pending:
+            done, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for future in done:
+                on_result(future.result())
+                spec = next(queue, None)
+                if spec is not None:
+                    pending.add(pool.submit(run_case_safely, spec))
+    except BaseException:
+        for future in pending:
+            future.cancel()
+        # the executor has no public "stop running work": end the worker processes directly
+        for process in list(getattr(pool, "_processes", {}).values()):
+            process.terminate()
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown(wait=True)
+
+
+_DASK_TASK_LOCK = threading.Lock()
+
+
+def run_case_on_dask(spec: CaseSpec) -> dict | Failure:
+    """A Dask task: one case at a time per worker process.
+
+    numba's default threading layer must not run parallel kernels from two
+    threads of one process at once, so a worker started with several threads
+    runs its cases one after another; start Dask workers with ``--nthreads 1``
+    and one process per core (``dask worker ADDRESS --nworkers N --nthreads 1``).
+    """
+    import numba
+
+    with _DASK_TASK_LOCK:
+        numba.set_num_threads(1)
+        return run_case_safely(spec)
+
+
+def connect(address: str):
+    """A Dask client of the scheduler at ``address``; InputError when it cannot be reached."""
+    try:
+        from distributed import Client
+    except ImportError:
+        raise InputError("--scheduler", "needs the dask[distributed] package "
+                         "(pip install 'dask[distributed]')") from None
+    try:
+        return Client(address, timeout="5s", set_as_default=False)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise InputError("--scheduler", f"cannot reach a Dask scheduler at '{address}' "
+                         f"({type(exc).__name__}: {exc}); give tcp://HOST:PORT of a running "
+                         "scheduler") from None
+
+
+def run_dask(specs: Iterable[CaseSpec], client, on_result: OnResult) -> None:
+    """The same cases as tasks of a Dask cluster (``client`` from :func:`connect`)."""
+    from distributed import as_completed
+
+    futures = [client.submit(run_case_on_dask, spec, pure=False,
+                             key=f"emaprog-{spec.campaign_hash[:12]}-{spec.case_id}")
+               for spec in specs]
+    try:
+        for future in as_completed(futures, loop=client.loop):
+            on_result(future.result())
+    except BaseException:
+        client.cancel(futures)
+        raise
+
+
+def load_parameters(campaign_path: Path, campaign: Campaign, base: Scenario) -> Parameters:
+    """The base scenario's parameter set, resolved next to the file that names it."""
+    if isinstance(campaign.scenario, str):
+        folder = (campaign_path.parent / campaign.scenario).parent
+    else:
+        folder = campaign_path.parent
+    return parameter_sets.load(base.parameters, relative_to=folder, source=campaign_path)

@@ -1,0 +1,243 @@
+"""What a campaign's cases say together: error statistics, detection, false alarms, isolation.
+
+Works on the case table of :class:`emaprog.campaign.CaseStore` only (never
+re-simulates). The tolerances are SPEC 10's identification bars.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+import pandas as pd
+
+from .faults import QUANTITIES
+from .parameters import Parameters
+
+FAULTS = ("friction", "backlash", "short_circuit", "eccentricity")
+PHASES = ("a", "b", "c", "none")
+
+
+class Accuracy(NamedTuple):
+    """How a quantity's error is measured and SPEC 10's bar on it."""
+
+    measure: str  # "absolute" | "relative" (error / true value)
+    tolerance: float | None  # SPEC 10 bar on |error| in that measure; None: no bar
+
+
+ACCURACY = {
+    "friction": Accuracy("relative", 0.05),
+    "backlash": Accuracy("absolute", 5e-5),
+    "short_circuit_a": Accuracy("absolute", 0.03),
+    "short_circuit_b": Accuracy("absolute", 0.03),
+    "short_circuit_c": Accuracy("absolute", 0.03),
+    "eccentricity_zeta": Accuracy("absolute", 0.05),
+    "eccentricity_phase": Accuracy("absolute", None),  # only where zeta is detectable
+}
+
+#: Regression tolerances of ``sweep --baseline``: a figure is "worse" only past these.
+#: Error percentiles: 25 % relative growth plus a tenth of the SPEC bar, so float-level
+#: differences between machines pass and a real loss of accuracy does not.
+ERROR_GROWTH = 0.25
+ERROR_FLOOR = 0.1
+#: Rates (detection, isolation, false alarms): 0.1 absolute, about one case of a small
+#: regression campaign's group.
+RATE_SLACK = 0.10
+
+
+def error_values(frame: pd.DataFrame, quantity: str, params: Parameters) -> np.ndarray:
+    """Finite errors of one quantity in its ACCURACY measure (see :func:`summarize`)."""
+    err = frame[f"err_{quantity}"].to_numpy(float)
+    if ACCURACY[quantity].measure == "relative":
+        err = err / frame[f"true_{quantity}"].to_numpy(float)
+    if quantity == "eccentricity_phase":
+        detectable = frame["true_eccentricity_zeta"] >= params.spec.health.eccentricity.incipient
+        err = err[detectable.to_numpy()]
+    return err[np.isfinite(err)]
+
+
+def _statistics(err: np.ndarray, accuracy: Accuracy, unit: str) -> dict:
+    size = int(err.size)
+    if size == 0:
+        return {"n": 0, "measure": accuracy.measure, "unit": unit, "tolerance": accuracy.tolerance,
+                "bias": None, "mean": None, "median": None, "p95": None, "max": None,
+                "within_tolerance": None}
+    magnitude = np.abs(err)
+    within = (None if accuracy.tolerance is None
+              else float(np.mean(magnitude <= accuracy.tolerance)))
+    return {
+        "n": size, "measure": accuracy.measure,
+        "unit": "-" if accuracy.measure == "relative" else unit,
+        "tolerance": accuracy.tolerance,
+        "bias": float(np.mean(err)), "mean": float(np.mean(magnitude)),
+        "median": float(np.median(magnitude)), "p95": float(np.percentile(magnitude, 95)),
+        "max": float(np.max(magnitude)), "within_tolerance": within,
+    }
+
+
+def _rate(hits: int, total: int) -> float | None:
+    return hits / total if total else None
+
+
+def summarize(frame: pd.DataFrame, params: Parameters) -> dict:
+    """Per-fault error statistics, detection and false-alarm rates, isolation confusion.
+
+    * error statistics on |estimate - truth| (friction relative to its true value;
+      the eccentricity phase only where the true zeta reaches the incipient
+      threshold): mean, median, 95th percentile, max, share within SPEC 10;
+    * detection rate per fault: among cases whose true severity reaches the
+      fault's ``incipient`` threshold, the share whose verdict is not nominal;
+    * false alarms: among the all-healthy cases, the share with any (and with
+      each) fault not nominal; per fault also over all cases where that fault is
+      truly below its incipient threshold;
+    * isolation: true faulty phase (largest shorted fraction at or above the
+      incipient threshold, else "none") against the phase the verdict named.
+    """
+    errors = {q: _statistics(error_values(frame, q, params), ACCURACY[q], QUANTITIES[q][0])
+              for q in QUANTITIES}
+    detection, absent_alarms = {}, {}
+    for fault in FAULTS:
+        flagged = frame[f"health_{fault}"].isin(["incipient", "degraded"])
+        present = frame[f"true_health_{fault}"] != "nominal"
+        detection[fault] = {"cases": int(present.sum()), "detected": int((flagged & present).sum()),
+                            "rate": _rate(int((flagged & present).sum()), int(present.sum()))}
+        absent_alarms[fault] = _rate(int((flagged & ~present).sum()), int((~present).sum()))
+    healthy = frame[frame["healthy_case"]]
+    flags = {f: healthy[f"health_{f}"].isin(["incipient", "degraded"]) for f in FAULTS}
+    any_flag = np.logical_or.reduce([v.to_numpy() for v in flags.values()]) if len(healthy) else []
+    false_alarms = {
+        "healthy_cases": int(len(healthy)),
+        "flagged": int(np.sum(any_flag)),
+        "rate": _rate(int(np.sum(any_flag)), len(healthy)),
+        "per_fault_on_healthy": {f: _rate(int(v.sum()), len(healthy)) for f, v in flags.items()},
+        "per_fault_where_absent": absent_alarms,
+    }
+    confusion = {t: {e: 0 for e in PHASES} for t in PHASES}
+    true_phase = np.where(frame["true_health_short_circuit"] != "nominal",
+                          frame["true_short_circuit_phase"], "none")
+    for t, e in zip(true_phase, frame["est_short_circuit_phase"]):
+        confusion[t][e] += 1
+    faulty = [t for t in true_phase if t != "none"]
+    right = sum(confusion[t][t] for t in "abc")
+    return {
+        "cases": int(len(frame)),
+        "errors": errors,
+        "detection": detection,
+        "false_alarms": false_alarms,
+        "isolation": {"confusion": confusion, "cases": len(faulty),
+                      "correct_rate": _rate(right, len(faulty))},
+        "timing": {
+            "median_simulate_s": float(frame["simulate_s"].median()) if len(frame) else None,
+            "median_identify_s": float(frame["identify_s"].median()) if len(frame) else None,
+        },
+    }
+
+
+def regression_figures(summary: dict) -> dict[str, tuple[float | None, str]]:
+    """The figures ``--baseline`` compares: name -> (value, "lower"|"higher" is better)."""
+    figures: dict[str, tuple[float | None, str]] = {}
+    for quantity, stats in summary["errors"].items():
+        for key in ("median", "p95"):
+            figures[f"errors.{quantity}.{key}"] = (stats[key], "lower")
+    for fault, stats in summary["detection"].items():
+        figures[f"detection.{fault}.rate"] = (stats["rate"], "higher")
+    figures["false_alarms.rate"] = (summary["false_alarms"]["rate"], "lower")
+    figures["isolation.correct_rate"] = (summary["isolation"]["correct_rate"], "higher")
+    return figures
+
+
+def _allowed(name: str, base: float, better: str) -> float:
+    if better == "higher":
+        return base - RATE_SLACK
+    if name.startswith("errors."):
+        quantity = name.split(".")[1]
+        bar = ACCURACY[quantity].tolerance
+        floor = ERROR_FLOOR * bar if bar is not None else ERROR_FLOOR * 0.5  # phase: 0.05 rad
+        return base * (1.0 + ERROR_GROWTH) + floor
+    return base + RATE_SLACK
+
+
+def compare(summary: dict, baseline: dict) -> list[str]:
+    """Figures of ``summary`` worse than ``baseline`` beyond their tolerance, one line each."""
+    ours = regression_figures(summary)
+    theirs = regression_figures(baseline)
+    worse = []
+    for name, (base, better) in theirs.items():
+        value = ours.get(name, (None, better))[0]
+        if base is None or value is None:
+            continue
+        limit = _allowed(name, base, better)
+        if (better == "lower" and value > limit) or (better == "higher" and value < limit):
+            sign = ">" if better == "lower" else "<"
+            worse.append(f"{name}: {value:.4g} {sign} allowed {limit:.4g} (baseline {base:.4g})")
+    return worse
+
+
+def _cell(value, fmt: str = "{:.3g}") -> str:
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return "—"
+    return fmt.format(value)
+
+
+def markdown(summary: dict, meta: dict) -> str:
+    """summary.md: the tables of :func:`summarize` for a person, figures embedded."""
+    rows = []
+    for quantity, s in summary["errors"].items():
+        rows.append(f"| {quantity} | {s['measure']} [{s['unit']}] | {s['n']} | {_cell(s['bias'])} | "
+                    f"{_cell(s['median'])} | {_cell(s['p95'])} | {_cell(s['max'])} | "
+                    f"{_cell(s['tolerance'])} | {_cell(s['within_tolerance'], '{:.0%}')} |")
+    detection = "\n".join(
+        f"| {f} | {d['cases']} | {d['detected']} | {_cell(d['rate'], '{:.0%}')} | "
+        f"{_cell(summary['false_alarms']['per_fault_on_healthy'][f], '{:.0%}')} | "
+        f"{_cell(summary['false_alarms']['per_fault_where_absent'][f], '{:.0%}')} |"
+        for f, d in summary["detection"].items())
+    confusion = summary["isolation"]["confusion"]
+    matrix = "\n".join(f"| {t} | " + " | ".join(str(confusion[t][e]) for e in PHASES) + " |"
+                       for t in PHASES)
+    fa = summary["false_alarms"]
+    failures = meta.get("failed", 0)
+    return f"""# Campaign {meta['campaign']}: {summary['cases']} cases
+
+Campaign `{meta['campaign_file']}` (hash `{meta['campaign_hash'][:12]}`), base scenario
+`{meta['scenario']}`, parameter set `{meta['parameters']}`, seed {meta['seed']},
+emaprog {meta['emaprog_version']}. Finished cases: {summary['cases']} of {meta['planned']};
+failed: {failures}{' (see failures/)' if failures else ''}.
+
+## Identification error
+
+Error = estimate - truth (friction relative to its true value). Statistics on |error|;
+"within" is the share inside SPEC 10's tolerance. The eccentricity phase counts only
+cases whose true zeta reaches the incipient threshold.
+
+| quantity | measure | n | bias | median | p95 | max | tolerance | within |
+|---|---|---|---|---|---|---|---|---|
+{chr(10).join(rows)}
+
+![parity plots](parity.png)
+
+![error histograms](errors.png)
+
+## Detection and false alarms
+
+Detected: verdict incipient or degraded where the true fault reaches its incipient
+threshold. False alarms: on the {fa['healthy_cases']} all-healthy cases
+({fa['flagged']} flagged, rate {_cell(fa['rate'], '{:.0%}')}), and over every case where the
+fault is truly below its incipient threshold.
+
+| fault | faulty cases | detected | detection rate | false alarms (healthy cases) | false alarms (fault absent) |
+|---|---|---|---|---|---|
+{detection}
+
+## Short-circuit isolation
+
+Rows: true faulty phase; columns: phase named by the verdict. Correct on
+{_cell(summary['isolation']['correct_rate'], '{:.0%}')} of {summary['isolation']['cases']} faulty cases.
+
+| true \\ named | {' | '.join(PHASES)} |
+|---|---|---|---|---|
+{matrix}
+
+Median time per case: simulate {_cell(summary['timing']['median_simulate_s'], '{:.2f}')} s,
+identify {_cell(summary['timing']['median_identify_s'], '{:.2f}')} s.
+"""

@@ -1,0 +1,318 @@
+"""Monte-Carlo campaigns: sampling, resumable storage, local pool, Dask, summary, baseline.
+
+The campaigns here are short (0.2 s sine, a 16 x 4 GA without refinement) so
+that a case takes a fraction of a second: these tests check the machinery
+(seeds, storage, resume, execution back-ends), not identification accuracy,
+which tests/test_identify.py and the regression campaign check.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+from emaprog import api, campaign as campaigns, parameters
+from emaprog.campaign_summary import compare, summarize
+from emaprog.cli import app
+from emaprog.scenario import load_campaign
+
+from .conftest import ROOT
+
+runner = CliRunner()
+TIMINGS = ["simulate_s", "identify_s"]
+
+TINY = {
+    "name": "tiny",
+    "cases": 8,
+    "seed": 11,
+    "scenario": {"name": "tiny-base", "duration": 0.2, "seed": 0,
+                 "command": {"kind": "sine", "amplitude": 0.05, "frequency": 4.0}},
+    "faults": {
+        "friction": {"uniform": [1.0, 3.0]},
+        "backlash": {"uniform": [0.0, 1.0e-3]},
+        "short_circuit": {"phase": "any", "fraction": {"uniform": [0.0, 0.4]}},
+        "eccentricity": {"zeta": {"uniform": [0.0, 0.5]}},
+        "healthy_fraction": 0.25,
+    },
+    "identify": {"ga": {"population": 16, "generations": 4}, "refine": False},
+}
+
+
+def write_campaign(folder: Path, **changes) -> Path:
+    path = folder / f"{changes.get('name', 'tiny')}.yaml"
+    path.write_text(yaml.safe_dump({**TINY, **changes}))
+    return path
+
+
+def cases(folder: Path) -> pd.DataFrame:
+    """The case table without its timings (the only columns that may differ between runs)."""
+    return campaigns.CaseStore(folder).read().drop(columns=TIMINGS)
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    """The tiny campaign run once, uninterrupted, in this process: the reference result."""
+    folder = tmp_path_factory.mktemp("tiny")
+    path = write_campaign(folder)
+    outcome = api.sweep(path, folder / "serial", workers=1, show_progress=False)
+    return path, outcome
+
+
+# ---------------------------------------------------------------- sampling
+def test_cases_are_keyed_by_index_and_respect_their_distributions(tmp_path):
+    campaign, _ = load_campaign(write_campaign(tmp_path, cases=400))
+    forward = [campaigns.sample_case(campaign, k) for k in range(400)]
+    backward = [campaigns.sample_case(campaign, k) for k in reversed(range(400))][::-1]
+    assert forward == backward  # order of evaluation does not matter
+    healthy = [c for c in forward if c[0]]
+    assert 0.18 < len(healthy) / 400 < 0.32  # healthy_fraction 0.25, binomial 3 sigma
+    assert all(c[1].friction == 1.0 and c[1].short_circuit.a == 0.0 for c in healthy)
+    faulty = [c[1] for c in forward if not c[0]]
+    assert all(1.0 <= f.friction <= 3.0 and 0.0 <= f.backlash <= 1e-3 for f in faulty)
+    # one shorted phase per faulty case, each phase about a third of the time
+    shorted = [[x for x in "abc" if getattr(f.short_circuit, x) > 0] for f in faulty]
+    assert all(len(s) == 1 for s in shorted)
+    counts = {x: sum(s == [x] for s in shorted) for x in "abc"}
+    assert min(counts.values()) > 0.25 * len(faulty)
+    noise_seeds = {c[2] for c in forward}
+    assert len(noise_seeds) == 400  # every case its own noise
+
+
+def test_a_named_phase_is_the_only_one_shorted(tmp_path):
+    faults = {**TINY["faults"], "short_circuit": {"phase": "b", "fraction": {"uniform": [0.1, 0.2]}}}
+    campaign, _ = load_campaign(write_campaign(tmp_path, faults=faults, cases=30))
+    for k in range(30):
+        healthy, f, _, _ = campaigns.sample_case(campaign, k)
+        if not healthy:
+            assert f.short_circuit.a == f.short_circuit.c == 0.0 and 0.1 <= f.short_circuit.b <= 0.2
+
+
+# ---------------------------------------------------------------- results
+def test_sweep_writes_one_file_per_case_with_spec_columns_and_summary(tiny):
+    path, outcome = tiny
+    folder = outcome.folder
+    files = sorted((folder / "cases").glob("*.parquet"))
+    assert [f.name for f in files] == [f"case-{k:06d}.parquet" for k in range(8)]
+    frame = campaigns.CaseStore(folder).read()
+    for quantity in ("friction", "backlash", "short_circuit_a", "short_circuit_b",
+                     "short_circuit_c", "eccentricity_zeta", "eccentricity_phase"):
+        for prefix in ("true", "est", "err"):
+            assert f"{prefix}_{quantity}" in frame.columns
+    for column in ("case_id", "noise_seed", "ga_seed", "fitness", "health_friction", *TIMINGS):
+        assert column in frame.columns
+    err = frame["est_friction"] - frame["true_friction"]
+    assert np.allclose(err, frame["err_friction"])
+    import pyarrow.parquet as pq
+
+    meta = json.loads(pq.read_schema(files[0]).metadata[b"emaprog"])
+    assert meta["campaign_hash"] == outcome.summary["campaign_hash"] and meta["case_id"] == 0
+    summary = json.loads((folder / "summary.json").read_text())
+    assert summary["finished"] == 8 and summary["failed"] == 0
+    assert (folder / "parity.png").stat().st_size > 10_000
+    assert (folder / "errors.png").stat().st_size > 10_000
+    assert "parity.png" in (folder / "summary.md").read_text()
+
+
+def test_local_pool_gives_the_same_cases_as_one_process(tiny, tmp_path):
+    path, outcome = tiny
+    api.sweep(path, tmp_path / "pool", workers=2, show_progress=False)
+    pd.testing.assert_frame_equal(cases(tmp_path / "pool"), cases(outcome.folder))
+
+
+def test_resume_refuses_a_changed_campaign_and_a_used_folder(tiny, tmp_path):
+    path, outcome = tiny
+    again = runner.invoke(app, ["sweep", str(path), "-o", str(outcome.folder)])
+    assert again.exit_code == 2 and "--resume" in again.output
+    changed = write_campaign(tmp_path, seed=12)
+    result = runner.invoke(app, ["sweep", str(changed), "-o", str(outcome.folder), "--resume"])
+    assert result.exit_code == 2 and "changed since the first run" in result.output
+    resumed = runner.invoke(app, ["sweep", str(path), "-o", str(outcome.folder), "--resume"])
+    assert resumed.exit_code == 0 and "0 run now, 8 from earlier runs" in resumed.output
+
+
+def _start_sweep(path: Path, folder: Path) -> subprocess.Popen:
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    return subprocess.Popen([sys.executable, "-m", "emaprog", "sweep", str(path), "-o", str(folder),
+                             "--workers", "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, env=env, start_new_session=True)
+
+
+def _wait_for_cases(folder: Path, count: int, process: subprocess.Popen, limit: float = 120.0):
+    deadline = time.monotonic() + limit
+    while time.monotonic() < deadline:
+        if len(list((folder / "cases").glob("case-*.parquet"))) >= count:
+            return
+        assert process.poll() is None, process.communicate()
+        time.sleep(0.02)
+    raise AssertionError(f"no {count} cases after {limit} s")
+
+
+def test_killed_sweep_resumes_to_the_uninterrupted_result(tiny, tmp_path):
+    path, outcome = tiny
+    slow = write_campaign(tmp_path, cases=16)  # same first 8 cases, more work to interrupt
+    folder = tmp_path / "killed"
+    process = _start_sweep(slow, folder)
+    _wait_for_cases(folder, 2, process)
+    os.killpg(process.pid, signal.SIGKILL)  # the sweep and its workers, as in a crash
+    process.wait()
+    survived = campaigns.CaseStore(folder).finished()
+    assert 2 <= len(survived) < 16
+    result = runner.invoke(app, ["sweep", str(slow), "-o", str(folder), "--resume", "--workers", "2"])
+    assert result.exit_code == 0, result.output
+    assert f"{16 - len(survived)} run now, {len(survived)} from earlier runs" in result.output
+    frame = cases(folder)
+    assert list(frame["case_id"]) == list(range(16))  # every case exactly once
+    pd.testing.assert_frame_equal(frame.iloc[:8].reset_index(drop=True), cases(outcome.folder))
+
+
+def test_ctrl_c_stops_cleanly_and_says_how_to_resume(tmp_path):
+    path = write_campaign(tmp_path, cases=16)
+    folder = tmp_path / "interrupted"
+    process = _start_sweep(path, folder)
+    _wait_for_cases(folder, 1, process)
+    os.killpg(process.pid, signal.SIGINT)  # Ctrl-C reaches the whole foreground group
+    _, err = process.communicate(timeout=60)
+    assert process.returncode == 130, err
+    assert "--resume" in err and "Traceback" not in err
+    assert not list((folder / "cases").glob(".case-*"))  # no temporary left behind
+    stored = campaigns.CaseStore(folder).read()
+    assert len(stored) == len(campaigns.CaseStore(folder).finished()) >= 1
+
+
+def test_a_failing_case_is_recorded_and_retried_on_resume(tiny, tmp_path, monkeypatch):
+    path, outcome = tiny
+    real = campaigns.run_case
+
+    def broken(spec):
+        if spec.case_id == 3:
+            raise FloatingPointError("diverged")
+        return real(spec)
+
+    monkeypatch.setattr(campaigns, "run_case", broken)
+    first = api.sweep(path, tmp_path / "fail", workers=1, show_progress=False)
+    assert first.failed == 1 and first.summary["finished"] == 7
+    record = json.loads((tmp_path / "fail" / "failures" / "case-000003.json").read_text())
+    assert "FloatingPointError: diverged" in record["error"] and "Traceback" in record["traceback"]
+    monkeypatch.setattr(campaigns, "run_case", real)
+    second = api.sweep(path, tmp_path / "fail", workers=1, resume=True, show_progress=False)
+    assert second.ran == 1 and second.failed == 0
+    assert not (tmp_path / "fail" / "failures" / "case-000003.json").exists()
+    pd.testing.assert_frame_equal(cases(tmp_path / "fail"), cases(outcome.folder))
+
+
+def test_dask_local_cluster_runs_the_same_cases(tiny, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    path, outcome = tiny
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                  host="127.0.0.1", dashboard_address=None) as cluster:
+        result = api.sweep(path, tmp_path / "dask", scheduler=cluster.scheduler_address,
+                           show_progress=False)
+    assert result.summary["run"]["scheduler"].startswith("tcp://127.0.0.1")
+    pd.testing.assert_frame_equal(cases(tmp_path / "dask"), cases(outcome.folder))
+
+
+def test_unreachable_scheduler_is_invalid_input_and_writes_nothing(tiny, tmp_path):
+    path, _ = tiny
+    result = runner.invoke(app, ["sweep", str(path), "-o", str(tmp_path / "x"),
+                                 "--scheduler", "tcp://127.0.0.1:9"])
+    assert result.exit_code == 2 and "--scheduler" in result.output
+    assert not (tmp_path / "x").exists()
+
+
+# ---------------------------------------------------------------- summary and baseline
+def _frame(rows: list[dict]) -> pd.DataFrame:
+    base = {"healthy_case": False, "simulate_s": 0.1, "identify_s": 1.0,
+            "true_short_circuit_phase": "none", "est_short_circuit_phase": "none"}
+    for fault in ("friction", "backlash", "short_circuit", "eccentricity"):
+        base[f"health_{fault}"] = base[f"true_health_{fault}"] = "nominal"
+    for q, healthy in (("friction", 1.0), ("backlash", 0.0), ("short_circuit_a", 0.0),
+                       ("short_circuit_b", 0.0), ("short_circuit_c", 0.0),
+                       ("eccentricity_zeta", 0.0), ("eccentricity_phase", 0.0)):
+        base[f"true_{q}"] = base[f"est_{q}"] = healthy
+        base[f"err_{q}"] = 0.0
+    return pd.DataFrame([{**base, **row} for row in rows])
+
+
+def test_summary_counts_detections_false_alarms_and_isolation():
+    params = parameters.load("default")
+    frame = _frame([
+        {"healthy_case": True},  # correct healthy
+        {"healthy_case": True, "health_backlash": "incipient"},  # false alarm
+        {"true_health_short_circuit": "degraded", "health_short_circuit": "degraded",
+         "true_short_circuit_phase": "b", "est_short_circuit_phase": "b",
+         "true_short_circuit_b": 0.3, "est_short_circuit_b": 0.32, "err_short_circuit_b": 0.02},
+        {"true_health_short_circuit": "incipient", "health_short_circuit": "nominal",
+         "true_short_circuit_phase": "c", "true_short_circuit_c": 0.1, "err_short_circuit_c": -0.1},
+        {"true_health_friction": "degraded", "health_friction": "degraded",
+         "true_friction": 2.0, "est_friction": 2.2, "err_friction": 0.2},
+    ])
+    s = summarize(frame, params)
+    assert s["false_alarms"]["healthy_cases"] == 2 and s["false_alarms"]["rate"] == 0.5
+    assert s["false_alarms"]["per_fault_on_healthy"]["backlash"] == 0.5
+    assert s["detection"]["short_circuit"] == {"cases": 2, "detected": 1, "rate": 0.5}
+    assert s["detection"]["friction"]["rate"] == 1.0 and s["detection"]["backlash"]["rate"] is None
+    assert s["isolation"]["confusion"]["b"]["b"] == 1 and s["isolation"]["confusion"]["c"]["none"] == 1
+    assert s["isolation"]["correct_rate"] == 0.5
+    friction = s["errors"]["friction"]  # relative: 0.2 / 2.0 on one case, 0 elsewhere
+    assert friction["max"] == pytest.approx(0.1) and friction["within_tolerance"] == pytest.approx(0.8)
+    assert s["errors"]["short_circuit_c"]["max"] == pytest.approx(0.1)
+
+
+def test_compare_flags_only_figures_worse_than_their_tolerance():
+    params = parameters.load("default")
+    frame = _frame([{"true_health_friction": "degraded", "health_friction": "degraded",
+                     "true_friction": 2.0, "est_friction": 2.02, "err_friction": 0.02}])
+    base = summarize(frame, params)
+    assert compare(base, base) == []
+    slightly = json.loads(json.dumps(base))
+    slightly["errors"]["friction"]["p95"] *= 1.1  # within 25 % growth
+    assert compare(slightly, base) == []
+    worse = json.loads(json.dumps(base))
+    worse["errors"]["friction"]["p95"] = 0.05
+    worse["detection"]["friction"]["rate"] = 0.5
+    lines = compare(worse, base)
+    assert len(lines) == 2 and lines[0].startswith("errors.friction.p95")
+    assert any(line.startswith("detection.friction.rate") for line in lines)
+
+
+def test_baseline_regression_exits_3_and_bad_baseline_exits_2(tiny, tmp_path):
+    path, outcome = tiny
+    summary = json.loads((outcome.folder / "summary.json").read_text())
+    same = tmp_path / "same.json"
+    same.write_text(json.dumps(summary))
+    ok = runner.invoke(app, ["sweep", str(path), "-o", str(outcome.folder), "--resume",
+                             "--baseline", str(same)])
+    assert ok.exit_code == 0 and "no figure worse" in ok.output
+    better = json.loads(json.dumps(summary))
+    better["errors"]["backlash"]["p95"] = 0.0
+    better["false_alarms"]["rate"] = 0.0
+    better_path = tmp_path / "better.json"
+    better_path.write_text(json.dumps(better))
+    regressed = runner.invoke(app, ["sweep", str(path), "-o", str(outcome.folder), "--resume",
+                                    "--baseline", str(better_path)])
+    assert regressed.exit_code == 3 and "errors.backlash.p95" in regressed.output
+    junk = tmp_path / "junk.json"
+    junk.write_text("{\"errors\": 1}")
+    bad = runner.invoke(app, ["sweep", str(path), "-o", str(outcome.folder), "--resume",
+                              "--baseline", str(junk)])
+    assert bad.exit_code == 2 and "junk.json" in bad.output
+
+
+@pytest.mark.slow
+def test_regression_campaign_meets_its_committed_baseline(tmp_path):
+    campaign = ROOT / "campaigns" / "regression.yaml"
+    baseline = ROOT / "campaigns" / "regression-baseline.json"
+    result = runner.invoke(app, ["sweep", str(campaign), "-o", str(tmp_path / "regression"),
+                                 "--baseline", str(baseline)])
+    assert result.exit_code == 0, result.output
