@@ -43,20 +43,22 @@ def scenario_parameters(scenario: Scenario, scenario_path: str | Path | None):
 
 
 def simulate_scenario(scenario: Scenario, params, model: Model = "reference",
-                      with_noise: bool = True) -> Trace:
+                      with_noise: bool = True, show_progress: bool = False) -> Trace:
     if model == "reference":
-        return reference.simulate(scenario, params, with_noise=with_noise)
+        return reference.simulate(scenario, params, with_noise=with_noise,
+                                  show_progress=show_progress)
     if model == "monitor":
         return monitor.simulate(scenario, params)
     raise InputError("--model", f"unknown model '{model}' (allowed: reference, monitor)")
 
 
 def simulate(scenario_path: str | Path, output: str | Path | None = None,
-             model: Model = "reference", plot: bool = False) -> tuple[Path, Path | None]:
+             model: Model = "reference", plot: bool = False,
+             show_progress: bool = True) -> tuple[Path, Path | None]:
     """Simulate a scenario file and write its trace (and optional PNG beside it)."""
     scenario = load_scenario(scenario_path)
     params = scenario_parameters(scenario, scenario_path)
-    trace = simulate_scenario(scenario, params, model)
+    trace = simulate_scenario(scenario, params, model, show_progress=show_progress)
     output = Path(output) if output else Path("out") / f"{scenario.name}-{model}.parquet"
     write_trace(output, trace)
     figure = None

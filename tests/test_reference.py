@@ -150,3 +150,21 @@ def test_eccentricity_changes_current_but_barely_position():
     faulty, _ = reference_run("chirp-nominal", HEALTHY._replace(ecc_magnitude=0.4, ecc_phase=1.0))
     assert nrmse(low_pass(faulty["current"]), low_pass(nominal["current"])) > 0.01
     assert nrmse(faulty["position"], nominal["position"]) < 0.005
+
+
+def test_chunked_run_behind_a_progress_bar_is_the_single_run(params, monkeypatch, capsys):
+    """A long run is computed in chunks for its progress bar: same trace, same energy ledger."""
+    from emaprog.models import reference
+    from emaprog.models.common import inputs
+    from emaprog.faults import to_params
+    from .conftest import scenario
+
+    sc = scenario("fig10-multiple-faults")
+    whole, ledger = reference_run("fig10-multiple-faults", noise=True)
+    monkeypatch.setattr(reference, "PROGRESS_STEPS", 1)  # every run counts as long
+    chunked, chunked_ledger = reference.run(params, inputs(sc, params), to_params(sc.faults),
+                                            sc.seed, show_progress=True)
+    assert all(np.array_equal(whole[k], chunked[k]) for k in whole)
+    assert chunked_ledger == pytest.approx(ledger, rel=1e-12, abs=1e-15)
+    log = capsys.readouterr().err  # not a terminal: plain progress lines
+    assert "reference model: 5000/5000" in log

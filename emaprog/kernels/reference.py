@@ -16,6 +16,22 @@ from .mechanics import end_stop_torque, mechanics_step
 ENERGY_SLOTS = ("inverter", "copper", "friction", "viscous", "link_damping", "load",
                 "end_stop", "stored_initial", "stored_final")
 
+#: Slots of the state carried from one call of :func:`simulate_reference` to the next,
+#: so that a long run can be done in chunks (progress bar) with the same numbers.
+STATE_SLOTS = ("current_a", "current_b", "current_c", "motor_angle", "motor_speed",
+               "surface_angle", "surface_speed", "position_integral", "speed_integral",
+               "bridge", "mean_current", "mean_current_a", "mean_current_b", "mean_current_c",
+               "mean_torque")
+_I0, _I1, _I2, _THETA_M, _OMEGA_M, _THETA_S, _OMEGA_S, _POS_INT, _SPD_INT, _BRIDGE, \
+    _ACC_EQ, _ACC_A, _ACC_B, _ACC_C, _ACC_T = range(len(STATE_SLOTS))
+
+
+def initial_state() -> np.ndarray:
+    """The state at rest (all zeros; the bridge starts driving positive current)."""
+    state = np.zeros(len(STATE_SLOTS))
+    state[_BRIDGE] = 1.0
+    return state
+
 
 @njit(cache=True)
 def _stored_energy(i, l, theta_m, omega_m, theta_s, omega_s, backlash, mech):
@@ -31,8 +47,8 @@ def _stored_energy(i, l, theta_m, omega_m, theta_s, omega_s, backlash, mech):
 def simulate_reference(command, load_torque, load_stiffness, noise_position, noise_speed,
                        noise_current, elec, mech, ctrl, sens, faults, substeps,
                        position, speed, current, current_a, current_b, current_c,
-                       torque_out, motor_angle, energy):
-    """Run the Reference Model over ``command.size`` controller periods.
+                       torque_out, motor_angle, energy, state, start, stop):
+    """Run the Reference Model over controller periods ``start`` to ``stop - 1``.
 
     Parameters
     ----------
@@ -53,36 +69,42 @@ def simulate_reference(command, load_torque, load_stiffness, noise_position, noi
     position ... motor_angle : (n,) float64, outputs
         Row k holds the feedback sampled at ``k T`` and the currents/torque
         averaged over the period ending at ``k T`` (integrate-and-dump ADC).
-    energy : (9,) float64, output
-        Energy ledger [J], slots :data:`ENERGY_SLOTS`.
+    energy : (9,) float64, in/out
+        Energy ledger [J], slots :data:`ENERGY_SLOTS`; reset when ``start`` is 0,
+        accumulated over later chunks.
+    state : (15,) float64, in/out
+        Slots :data:`STATE_SLOTS`; :func:`initial_state` for ``start`` 0, then
+        whatever the previous chunk left. Chunked and single-call runs are identical.
+    start, stop : int
+        Rows to compute (``0 <= start <= stop <= command.size``).
     """
-    n = command.size
     dt = ctrl.period / substeps
     pp = elec.pole_pairs
     working = np.array([1.0 - faults.short_a, 1.0 - faults.short_b, 1.0 - faults.short_c])
     r = working * elec.phase_resistance
     l = working * working * elec.phase_inductance
-    i = np.zeros(3)
+    i = np.array([state[_I0], state[_I1], state[_I2]])
     e = np.zeros(3)
     legs = np.zeros(3, dtype=np.int64)
     v_scratch = np.zeros(3)
     tied_scratch = np.zeros(3, dtype=np.int64)
-    theta_m = 0.0
-    omega_m = 0.0
-    theta_s = 0.0
-    omega_s = 0.0
-    position_int = 0.0
-    speed_int = 0.0
-    bridge = 1
-    acc_eq = 0.0
-    acc_a = 0.0
-    acc_b = 0.0
-    acc_c = 0.0
-    acc_t = 0.0
-    for slot in range(energy.size):
-        energy[slot] = 0.0
-    energy[7] = _stored_energy(i, l, theta_m, omega_m, theta_s, omega_s, faults.backlash, mech)
-    for k in range(n):
+    theta_m = state[_THETA_M]
+    omega_m = state[_OMEGA_M]
+    theta_s = state[_THETA_S]
+    omega_s = state[_OMEGA_S]
+    position_int = state[_POS_INT]
+    speed_int = state[_SPD_INT]
+    bridge = int(state[_BRIDGE])
+    acc_eq = state[_ACC_EQ]
+    acc_a = state[_ACC_A]
+    acc_b = state[_ACC_B]
+    acc_c = state[_ACC_C]
+    acc_t = state[_ACC_T]
+    if start == 0:
+        for slot in range(energy.size):
+            energy[slot] = 0.0
+        energy[7] = _stored_energy(i, l, theta_m, omega_m, theta_s, omega_s, faults.backlash, mech)
+    for k in range(start, stop):
         pos_meas = quantize(theta_s + sens.position_offset + noise_position[k],
                             sens.position_lsb, sens.position_range)
         spd_meas = quantize(omega_m + noise_speed[k], sens.speed_lsb, sens.speed_range)
@@ -152,6 +174,21 @@ def simulate_reference(command, load_torque, load_stiffness, noise_position, noi
         acc_c /= substeps
         acc_t /= substeps
     energy[8] = _stored_energy(i, l, theta_m, omega_m, theta_s, omega_s, faults.backlash, mech)
+    state[_I0] = i[0]
+    state[_I1] = i[1]
+    state[_I2] = i[2]
+    state[_THETA_M] = theta_m
+    state[_OMEGA_M] = omega_m
+    state[_THETA_S] = theta_s
+    state[_OMEGA_S] = omega_s
+    state[_POS_INT] = position_int
+    state[_SPD_INT] = speed_int
+    state[_BRIDGE] = bridge
+    state[_ACC_EQ] = acc_eq
+    state[_ACC_A] = acc_a
+    state[_ACC_B] = acc_b
+    state[_ACC_C] = acc_c
+    state[_ACC_T] = acc_t
 
 
 @njit(cache=True)

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import progress
 from ..faults import FaultParams, to_params
-from ..kernels.reference import ENERGY_SLOTS, simulate_reference
+from ..kernels.reference import ENERGY_SLOTS, initial_state, simulate_reference
 from ..numerics import DEFAULT, Numerics
 from ..parameters import Parameters
 from ..scenario import Scenario
@@ -26,29 +27,46 @@ def noise(params: Parameters, n: int, seed: int, enabled: bool = True):
     return draws[:, 0] * s.position_noise, draws[:, 1] * s.speed_noise, draws[:, 2:] * s.current_noise
 
 
+#: Integration steps above which a run takes about a second or more (0.2 us per step):
+#: only such runs draw a progress bar.
+PROGRESS_STEPS = 5_000_000
+CHUNKS = 50  # kernel calls of a run with a progress bar (the state carries over exactly)
+
+
 def run(params: Parameters, inp: Inputs, faults: FaultParams, seed: int = 0,
-        with_noise: bool = True, numerics: Numerics = DEFAULT):
-    """Run the kernel; returns (columns dict, energy ledger dict)."""
+        with_noise: bool = True, numerics: Numerics = DEFAULT, show_progress: bool = False):
+    """Run the kernel; returns (columns dict, energy ledger dict).
+
+    With ``show_progress`` a run long enough to be waited for is computed in
+    chunks behind a progress bar; the numbers are the same either way.
+    """
     n = inp.time.size
     npos, nspd, ncur = noise(params, n, seed, with_noise)
     names = ("position", "speed", "current", "current_a", "current_b", "current_c", "torque",
              "motor_angle")
     out = {name: np.empty(n) for name in names}
     energy = np.zeros(len(ENERGY_SLOTS))
-    simulate_reference(
-        inp.command, inp.load_torque, inp.load_stiffness, npos, nspd, ncur,
-        params.electrical, params.mechanical, params.controller, params.sensors, faults,
-        numerics.reference_substeps, *(out[name] for name in names), energy,
-    )
+    state = initial_state()
+    long_run = show_progress and n * numerics.reference_substeps >= PROGRESS_STEPS
+    bounds = np.linspace(0, n, CHUNKS + 1 if long_run else 2).round().astype(int)
+    with progress.task("reference model", n, long_run) as advance:
+        for start, stop in zip(bounds[:-1], bounds[1:]):
+            simulate_reference(
+                inp.command, inp.load_torque, inp.load_stiffness, npos, nspd, ncur,
+                params.electrical, params.mechanical, params.controller, params.sensors, faults,
+                numerics.reference_substeps, *(out[name] for name in names), energy, state,
+                int(start), int(stop),
+            )
+            advance(int(stop - start))
     columns = {"time": inp.time, "command": inp.command, **out}
     return columns, dict(zip(ENERGY_SLOTS, energy.tolist()))
 
 
 def simulate(scenario: Scenario, params: Parameters, with_noise: bool = True,
-             numerics: Numerics = DEFAULT) -> Trace:
+             numerics: Numerics = DEFAULT, show_progress: bool = False) -> Trace:
     """Simulate a scenario on the Reference Model and return the measured trace."""
     columns, _ = run(params, inputs(scenario, params), to_params(scenario.faults),
-                     scenario.seed, with_noise, numerics)
+                     scenario.seed, with_noise, numerics, show_progress)
     meta = provenance("reference", scenario, params, noise=with_noise,
                       time_step=params.controller.period / numerics.reference_substeps)
     return Trace(columns, meta)
