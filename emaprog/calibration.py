@@ -58,8 +58,9 @@ class Fit:
         self.params, self.inp = params, inp
         rate = params.spec.controller.rate
         self.width = max(1, round(FILTER_SECONDS * rate))
-        self.first = round(STARTUP_SECONDS * rate)
         self.target = low_pass(reference_current, self.width)
+        self.sample_weight = np.ones_like(self.target)
+        self.sample_weight[: round(STARTUP_SECONDS * rate)] = 0.0
 
     def __call__(self, rows: np.ndarray, flags) -> np.ndarray:
         p, inp = self.params, self.inp
@@ -68,20 +69,25 @@ class Fit:
         evaluate_population(np.ascontiguousarray(rows), inp.command, inp.load_torque,
                             inp.load_stiffness, p.electrical, p.mechanical, p.controller,
                             p.sensors, *flags, DEFAULT.monitor_substeps, self.target, zeros, zeros,
-                            np.array([1.0, 0.0, 0.0]), self.width, self.first, out)
+                            np.array([1.0, 0.0, 0.0]), self.width, self.sample_weight, out)
         return out
+
+
+def with_loss(flags: tuple, loss: float) -> tuple:
+    """Monitor kernel flags with another commutation loss [s/rad]."""
+    return flags[:3] + (loss,) + flags[4:]
 
 
 def fit_commutation_loss(params: Parameters, inp: Inputs) -> float:
     ref, _ = reference.run(params, inp, HEALTHY, with_noise=False)
     fit = Fit(params, inp, ref["current"])
-    psc, ecc, scale, _ = monitor.model_flags(params)
+    flags = monitor.model_flags(params)
     friction = np.linspace(0.7, 1.5, 81)
     rows = np.tile(np.asarray(HEALTHY, float), (friction.size, 1))
     rows[:, 0] = friction
 
     def friction_bias(loss: float) -> float:
-        return float(friction[np.argmin(fit(rows, (psc, ecc, scale, loss)))] - 1.0)
+        return float(friction[np.argmin(fit(rows, with_loss(flags, loss)))] - 1.0)
 
     lo, hi = 0.0, 4e-4
     for _ in range(14):
@@ -140,8 +146,8 @@ def calibrate(params: Parameters) -> dict:
     """Run the three steps; returns the calibration.json content."""
     inp = calibration_inputs(params)
     loss = fit_commutation_loss(params, inp)
-    psc, ecc, scale, _ = monitor.model_flags(params)
-    flags = (psc, ecc, scale, loss)
+    flags = with_loss(monitor.model_flags(params), loss)
+    scale = flags[2]
     c, r_squared, optimal = fit_eccentricity(params, inp, flags)
     return {
         "parameters": params.source_file,

@@ -98,6 +98,10 @@ class Monitor(_Section):
     torque_gain_scale: Pos = Field(description="[-] nominal torque/back-EMF gain correction")
     commutation_loss: Annotated[float, Field(strict=True, ge=0, le=1e-3)] = Field(
         0.0, description="[s/rad] torque-per-ampere drop with motor speed (commutation dips)")
+    commutation_model: Literal["transient", "none"] = Field(
+        "none", description="'transient': the outgoing phase freewheels after each sector "
+                            "change (its current in the equivalent current and the torque); "
+                            "'none': the pair current switches instantly")
 
 
 class Threshold(_Section):

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Any, Literal, Optional, Union
 
 from pydantic import (BaseModel, ConfigDict, Field, ValidationError, ValidationInfo,
                       field_validator, model_validator)
@@ -185,6 +185,10 @@ class IdentifySettings(Strict):
     signals: Signals = Signals()
     ga: GASettings = GASettings()
     refine: bool = True
+    max_speed: Optional[_num(0.0, 1.0e4, lo_open=True,
+                             description="[rad/s] motor speed above which samples are left "
+                                         "out of the error; omitted: 40 % of the DC bus as "
+                                         "pair back-EMF")] = None
     nominal_correction: bool = Field(
         True, description="subtract the healthy Reference-Monitor difference from the measured "
                           "signals before fitting (see emaprog.identification.objective)")

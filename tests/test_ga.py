@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from emaprog.identification.ga import GAOptions, minimize
 
@@ -69,3 +70,21 @@ def test_stagnation_stops_early_and_logbook_is_monotone():
     best = [r["best"] for r in result.logbook]
     assert all(b1 <= b0 for b0, b1 in zip(best, best[1:]))
     assert result.evaluations == 8 + 5 * 8 - 5 * GAOptions().elite
+
+
+def test_samples_above_the_fit_speed_limit_and_the_start_up_are_left_out(params):
+    """identify.max_speed: the error counts only samples the Monitor is trusted at."""
+    from emaprog.identification.objective import fit_speed_limit, sample_weights
+    from emaprog.scenario import IdentifySettings
+
+    e = params.spec.electrical
+    default = fit_speed_limit(IdentifySettings(), params)
+    assert default == pytest.approx(0.4 * e.dc_bus_voltage / (2 * e.back_emf_constant))
+    assert fit_speed_limit(IdentifySettings(max_speed=123.0), params) == 123.0
+    speed = np.concatenate([np.zeros(10), np.linspace(0.0, 500.0, 90)])
+    weight = sample_weights(speed, 250.0, 5)
+    assert weight[:5].sum() == 0 and np.all(weight[5:][speed[5:] <= 250.0] == 1.0)
+    assert np.all(weight[speed > 250.0] == 0.0)
+    # a trace almost entirely above the limit is fitted whole rather than not at all
+    fast = np.full(100, 900.0)
+    assert sample_weights(fast, 250.0, 5)[5:].min() == 1.0

@@ -45,7 +45,62 @@ def test_fault_signature_error(params, fault):
     d_ref = low_pass(ref1["current"]) - low_pass(ref0["current"])
     d_mon = low_pass(mon1["current"]) - low_pass(mon0["current"])
     e_sig = np.linalg.norm((d_mon - d_ref)[100:]) / np.linalg.norm(d_ref[100:])
-    assert e_sig < 0.35, e_sig
+    # SPEC's bar is 0.35; with the commutation transients modelled all are <= 0.19 today
+    assert e_sig < 0.25, e_sig
+
+
+def short_circuit_signature_error(params, commutation: str) -> float:
+    from emaprog.models import monitor
+
+    flags = monitor.model_flags(params)[:4] + (commutation == "transient",)
+    f = FIG10["short_circuit_a"]
+    ref0, _ = reference_run("chirp-nominal", HEALTHY)
+    ref1, _ = reference_run("chirp-nominal", f)
+    inp = inputs(scenario("chirp-nominal"), params)
+    mon0 = monitor.run(params, inp, HEALTHY, flags=flags)
+    mon1 = monitor.run(params, inp, f, flags=flags)
+    d_ref = low_pass(ref1["current"]) - low_pass(ref0["current"])
+    d_mon = low_pass(mon1["current"]) - low_pass(mon0["current"])
+    return float(np.linalg.norm((d_mon - d_ref)[100:]) / np.linalg.norm(d_ref[100:]))
+
+
+def test_commutation_transients_carry_the_short_circuit_signature(params):
+    """A shorted phase commutes faster (L_x = N_x^2 L): modelling the outgoing phase's
+    freewheeling is what makes the Monitor's PSC signature follow the Reference's
+    (measured e_sig 0.25 without, 0.07 with)."""
+    without = short_circuit_signature_error(params, "none")
+    with_transients = short_circuit_signature_error(params, "transient")
+    assert with_transients < 0.5 * without
+
+
+@pytest.mark.parametrize("s6", range(6))
+def test_outgoing_phase_freewheels_at_the_closed_form_rate(s6):
+    """At a sector change the outgoing phase freewheels to a rail while the bridge holds the
+    pair current. The complementary legs keep v_p + v_q = Vdc, so the star point sits at
+    (Vdc - sum e)/3 whatever the duty and, with R = 0 and balanced phases, the outgoing
+    current falls at (Vdc + 2E) / (3 L) towards zero, then stops (diode)."""
+    import math
+
+    from emaprog.kernels.bldc import IDLE_PHASE, POSITIVE_PHASE, sector
+    from emaprog.kernels.monitor import commutation_step
+
+    k, inductance, vdc, omega, held = 0.15, 2.5e-3, 270.0, 200.0, 5.0
+    theta_e = s6 * math.pi / 3 - math.pi / 6 + 1e-9  # just after the sector change
+    assert sector(theta_e) == s6
+    sign = 1.0 if POSITIVE_PHASE[(s6 - 1) % 6] == IDLE_PHASE[s6] else -1.0
+    outgoing, dt = sign * 2.0 * held, 1e-7
+    pair, after, _, measured = commutation_step(held, outgoing, held, s6, theta_e, omega,
+                                                np.full(3, k), np.zeros(3), np.full(3, inductance),
+                                                vdc, dt)
+    assert pair == pytest.approx(held, abs=1e-9)  # the regulator holds the pair current
+    rate = (after - outgoing) / dt
+    assert rate == pytest.approx(-sign * (vdc + 2 * k * omega) / (3 * inductance), rel=1e-6)
+    # (|i_p| + |i_q| + |i_out|) / 2 with i_in = 0, i_common = -i_out: the old current
+    assert abs(measured) == pytest.approx(2 * held, rel=1e-3)
+    _, stopped, _, _ = commutation_step(held, sign * 1e-4, held, s6, theta_e, omega,
+                                        np.full(3, k), np.zeros(3), np.full(3, inductance),
+                                        vdc, 1e-5)
+    assert stopped == 0.0
 
 
 def test_averaged_short_circuit_is_the_sector_mean_of_the_modulated_law():

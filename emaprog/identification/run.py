@@ -42,6 +42,67 @@ def check_sampling(trace: Trace, params: Parameters, source: str) -> None:
                          f"set's controller runs at {rate:.6g} Hz; they must match", "time")
 
 
+class PolishCoordinates:
+    """Coordinates of the local polish: the genes, but eccentricity in the plane.
+
+    Near the optimum the current moves about linearly with the eccentricity
+    vector ``(zeta cos phi, zeta sin phi)``, so in those Cartesian coordinates
+    the error is a round bowl, while in (zeta, phi) it is a curved valley (and
+    phi is undefined at zeta = 0) that a coordinate search crawls along. The
+    polish therefore works on ``(x, y) = z (cos phi, sin phi)`` with ``z`` the
+    normalised zeta gene, each in [-1, 1]; the other genes are unchanged.
+    """
+
+    def __init__(self, objective: Objective):
+        names = [g.quantity for g in objective.genes]
+        self.pair = ((names.index("eccentricity_zeta"), names.index("eccentricity_phase"))
+                     if "eccentricity_zeta" in names else None)
+        self.bounds = [(-1.0, 1.0) if self.pair and j in self.pair else (0.0, 1.0)
+                       for j in range(len(names))]
+
+    def coordinates(self, genes: np.ndarray) -> np.ndarray:
+        u = np.array(genes, float)
+        if self.pair:
+            z, p = self.pair
+            angle = 2.0 * np.pi * genes[p]
+            u[z], u[p] = genes[z] * np.cos(angle), genes[z] * np.sin(angle)
+        return u
+
+    def genes(self, u: np.ndarray) -> np.ndarray:
+        genes = np.array(u, float)
+        if self.pair:
+            z, p = self.pair
+            genes[z] = min(1.0, float(np.hypot(u[z], u[p])))
+            genes[p] = (np.arctan2(u[p], u[z]) / (2.0 * np.pi)) % 1.0
+        return genes
+
+
+def single_phase_starts(objective: Objective, genes: np.ndarray) -> list[np.ndarray]:
+    """The GA's best with its short circuit moved onto one phase: a second start for the polish.
+
+    A short circuit on one phase and a smaller one spread over all three move
+    the equivalent current alike on average (the sector-to-sector difference
+    is what tells them apart), so the GA often ends in the spread valley and a
+    local search from there does not climb out. This start keeps the worst
+    phase's fraction and clears the others; of the two variants (worst phase as
+    it is, or carrying the others' sum) the better one is returned. Empty when
+    the short circuit is not estimated or already on one phase.
+    """
+    values = objective.values(genes)
+    fractions = {x: values[f"short_circuit_{x}"] for x in "abc"}
+    worst = max(fractions, key=fractions.get)
+    if "short_circuit_a" not in {g.quantity for g in objective.genes} or \
+            sum(v > 0 for v in fractions.values()) <= 1:
+        return []
+    candidates = []
+    for level in (fractions[worst], sum(fractions.values())):
+        moved = {**values, **{f"short_circuit_{x}": 0.0 for x in "abc"},
+                 f"short_circuit_{worst}": level}
+        candidates.append(objective.genes_for(moved))
+    fitness = objective(np.array(candidates))
+    return [candidates[int(np.argmin(fitness))]]
+
+
 def identify_trace(trace: Trace, inputs: Inputs, params: Parameters, settings: IdentifySettings,
                    numerics: Numerics = DEFAULT, show_progress: bool = True) -> Identification:
     """Run the GA (and optional refinement) on one trace; nothing is written."""
@@ -63,12 +124,14 @@ def identify_trace(trace: Trace, inputs: Inputs, params: Parameters, settings: I
                           on_generation=on_generation)
     best, best_fitness, refined = result.best, result.fitness, False
     if settings.refine:
-        bounds = [(-0.5, 1.5) if c else (0.0, 1.0) for c in objective.circular]
-        polish = local_minimize(lambda g: float(objective(g[None])[0]), best, method="Powell",
-                                bounds=bounds,
-                                options={"maxfev": REFINE_EVALUATIONS, "xtol": 1e-4, "ftol": 1e-6})
-        if polish.fun < best_fitness:
-            best, best_fitness, refined = np.asarray(polish.x), float(polish.fun), True
+        plane = PolishCoordinates(objective)
+        for origin in [result.best, *single_phase_starts(objective, result.best)]:
+            polish = local_minimize(lambda u: float(objective(plane.genes(u)[None])[0]),
+                                    plane.coordinates(origin), method="Powell", bounds=plane.bounds,
+                                    options={"maxfev": REFINE_EVALUATIONS, "xtol": 1e-4,
+                                             "ftol": 1e-6})
+            if polish.fun < best_fitness:
+                best, best_fitness, refined = plane.genes(polish.x), float(polish.fun), True
     return Identification(
         estimate=objective.values(best), ga_estimate=objective.values(result.best),
         fitness=best_fitness, ga_fitness=result.fitness, evaluations=objective.evaluations,

@@ -19,18 +19,19 @@ SHORT_CIRCUIT_MODELS = {"modulated": SHORT_CIRCUIT_MODULATED, "averaged": SHORT_
 ECCENTRICITY_MODELS = {"pair": ECCENTRICITY_PAIR, "paper": ECCENTRICITY_PAPER}
 
 
-def model_flags(params: Parameters) -> tuple[int, int, float, float]:
+def model_flags(params: Parameters) -> tuple[int, int, float, float, bool]:
     """Kernel arguments of the parameter set's monitor section.
 
-    (PSC law, RE law, torque gain scale [-], commutation loss [s/rad]).
+    (PSC law, RE law, torque gain scale [-], commutation loss [s/rad],
+    commutation transients modelled).
     """
     m = params.spec.monitor
     return (SHORT_CIRCUIT_MODELS[m.short_circuit_model], ECCENTRICITY_MODELS[m.eccentricity_model],
-            m.torque_gain_scale, m.commutation_loss)
+            m.torque_gain_scale, m.commutation_loss, m.commutation_model == "transient")
 
 
 def run(params: Parameters, inp: Inputs, faults: FaultParams, numerics: Numerics = DEFAULT,
-        flags: tuple[int, int, float, float] | None = None) -> dict[str, np.ndarray]:
+        flags: tuple[int, int, float, float, bool] | None = None) -> dict[str, np.ndarray]:
     """Run the Monitor kernel; ``faults.ecc_magnitude`` is Z. Returns trace columns."""
     n = inp.time.size
     names = ("position", "speed", "current", "motor_angle")
