@@ -19,18 +19,20 @@ FIG10 = SIGNATURE_FAULTS  # kernel form at the paper's Fig. 10 levels (RM: zeta;
 
 
 def test_healthy_monitor_matches_reference():
-    """SPEC 10: equivalent-current NRMSE <= 5 %, position NRMSE <= 2 % (noise-free, 1 ms mean)."""
+    """SPEC 10: equivalent-current NRMSE <= 5 %, position NRMSE <= 2 % (noise-free, 1 ms mean).
+
+    The current is held to 1 %: with the commutation transients modelled it is 0.4 %."""
     ref, _ = reference_run("chirp-nominal", HEALTHY)
     mon = monitor_run("chirp-nominal", HEALTHY)
-    assert nrmse(low_pass(mon["current"]), low_pass(ref["current"])) < 0.05
+    assert nrmse(low_pass(mon["current"]), low_pass(ref["current"])) < 0.01
     assert nrmse(mon["position"], ref["position"]) < 0.02
 
 
 def test_fig10_faulty_monitor_matches_reference(params):
-    """All four faults at Fig. 10 levels: current NRMSE <= 10 %."""
+    """All four faults at Fig. 10 levels: current NRMSE <= 10 % (SPEC); held to 2 %, measured 0.6 %."""
     ref, _ = reference_run("fig10-multiple-faults")
     mon = monitor_run("fig10-multiple-faults")
-    assert nrmse(low_pass(mon["current"]), low_pass(ref["current"])) < 0.10
+    assert nrmse(low_pass(mon["current"]), low_pass(ref["current"])) < 0.02
 
 
 @pytest.mark.parametrize("fault", sorted(FIG10))

@@ -316,3 +316,12 @@ def test_regression_campaign_meets_its_committed_baseline(tmp_path):
     result = runner.invoke(app, ["sweep", str(campaign), "-o", str(tmp_path / "regression"),
                                  "--baseline", str(baseline)])
     assert result.exit_code == 0, result.output
+
+
+@pytest.mark.slow
+def test_no_healthy_actuator_is_flagged_faulty(tmp_path):
+    """SPEC 10: 0 of 20 healthy traces flagged faulty (each with its own sensor noise)."""
+    outcome = api.sweep(ROOT / "campaigns" / "false-alarms.yaml", tmp_path / "fa",
+                        show_progress=False)
+    alarms = outcome.summary["false_alarms"]
+    assert alarms["healthy_cases"] == 20 and alarms["flagged"] == 0, alarms
