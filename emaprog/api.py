@@ -30,6 +30,10 @@ def check(paths: list[str | Path]) -> list[str]:
             campaign, base = loaded
             lines.append(f"{path}: campaign '{campaign.name}', {campaign.cases} cases on "
                          f"scenario '{base.name}'")
+        elif kind == "history":
+            history, base = loaded
+            lines.append(f"{path}: history '{history.name}' of {history.actuator}, "
+                         f"{history.inspections.count} inspections on scenario '{base.name}'")
         else:
             lines.append(f"{path}: scenario '{loaded.name}', {loaded.duration} s "
                          f"{loaded.command.kind} command, parameters '{loaded.parameters}'")
@@ -77,12 +81,15 @@ def _trace_scenario(trace: Trace, source: Path) -> Scenario | None:
 
 
 def identify(trace_path: str | Path, scenario_path: str | Path | None = None,
-             output: str | Path | None = None, show_progress: bool = True) -> tuple[dict, Path]:
+             output: str | Path | None = None, show_progress: bool = True,
+             inspection: dict | None = None) -> tuple[dict, Path]:
     """Identify the faults in a measured trace and write report.json, report.md and figures.
 
     Settings and parameter set come from ``scenario_path`` when given, else
     from the scenario embedded in the trace, else the defaults. Truth and error
     are reported when the trace carries its scenario (a simulated trace).
+    ``inspection`` ({"actuator": ID, "usage": hours}) tags the report for
+    ``emaprog trend``.
     """
     trace_path = Path(trace_path)
     trace = read_trace(trace_path)
@@ -120,6 +127,7 @@ def identify(trace_path: str | Path, scenario_path: str | Path | None = None,
         "trace": str(trace_path),
         "scenario": basis.name if basis is not None else None,
         "parameters": params.source_file,
+        "inspection": inspection,
         "emaprog_version": __version__,
     }
     folder = Path(output) if output else Path("out") / f"{trace_path.stem}-report"
@@ -169,10 +177,6 @@ class SweepOutcome(NamedTuple):
     regressions: list[str]  # figures worse than --baseline beyond their tolerance
 
 
-class SweepInterrupted(KeyboardInterrupt):
-    """Ctrl-C during a sweep; the message says what is on disk and how to go on."""
-
-
 def _read_baseline(path: Path) -> dict:
     import json
 
@@ -198,8 +202,8 @@ def sweep(campaign_path: str | Path, output: str | Path | None = None, workers: 
 
     Cases run on ``workers`` local processes (default: all cores; 1 runs them in
     this process) or, with ``scheduler``, on a Dask cluster. Each finished case
-    is on disk at once; Ctrl-C raises :class:`SweepInterrupted` after stopping
-    the workers. With ``baseline`` the summary is compared with an earlier one.
+    is on disk at once; Ctrl-C raises :class:`emaprog.campaign.Interrupted`
+    after stopping the workers. With ``baseline`` the summary is compared with an earlier one.
     """
     from . import campaign as campaigns
     from .scenario import load_campaign
@@ -223,7 +227,6 @@ def _sweep(campaign_path: Path, campaign, base, params, output, workers, client,
     import time
 
     from . import campaign as campaigns
-    from . import progress
     from .campaign_summary import ACCURACY, compare, error_values, markdown, summarize
     from .report import plot_error_histograms, plot_parity
 
@@ -242,30 +245,9 @@ def _sweep(campaign_path: Path, campaign, base, params, output, workers, client,
     todo = [k for k in range(campaign.cases) if k not in finished]
     specs = campaigns.case_specs(campaign, base, params, digest, todo)
     workers = max(1, min(workers or os.cpu_count() or 1, len(todo) or 1))
-    counts = {"done": 0, "failed": 0}
     start = time.perf_counter()
-    with progress.task(f"sweep {campaign.name}", len(todo), show_progress) as advance:
-
-        def on_result(result) -> None:
-            if isinstance(result, campaigns.Failure):
-                store.write_failure(result)
-                counts["failed"] += 1
-            else:
-                store.write_case(result, {**meta, "case_id": result["case_id"]})
-                counts["done"] += 1
-            advance(1, done=len(finished) + counts["done"], failed=counts["failed"])
-
-        try:
-            if client is not None and todo:
-                campaigns.run_dask(specs, client, on_result)
-            elif workers == 1 or not todo:
-                campaigns.run_serial(specs, on_result)
-            else:
-                campaigns.run_local(specs, workers, on_result)
-        except KeyboardInterrupt:
-            raise SweepInterrupted(
-                f"{len(finished) + counts['done']} of {campaign.cases} cases are stored in "
-                f"{store.cases}; run the same command with --resume to finish") from None
+    counts = campaigns.execute(specs, store, meta, len(todo), workers, client,
+                               f"sweep {campaign.name}", len(finished), show_progress)
     wall_s = time.perf_counter() - start
 
     frame = store.read()
@@ -290,3 +272,77 @@ def _sweep(campaign_path: Path, campaign, base, params, output, workers, client,
     (folder / "summary.md").write_text(markdown(summary, summary))
     return SweepOutcome(folder, summary, counts["done"] + counts["failed"], len(finished),
                         summary["failed"], regressions)
+
+
+def _history_source(history_path: Path, simulate: bool) -> str:
+    """Which kind of history a path is: 'synthetic', 'reports' or 'table'."""
+    if simulate:
+        if history_path.suffix not in (".yaml", ".yml"):
+            raise InputError(history_path, "--simulate takes a synthetic history YAML")
+        return "synthetic"
+    if history_path.is_dir():
+        return "reports"
+    if history_path.suffix == ".parquet":
+        if not history_path.is_file():
+            raise InputError(history_path, "history table not found")
+        return "table"
+    if history_path.suffix in (".yaml", ".yml"):
+        raise InputError(history_path, "is a history YAML: pass --simulate to simulate and "
+                         "identify its inspections")
+    raise InputError(history_path, "give a Parquet history table, a folder of report.json, or "
+                     "a synthetic history YAML with --simulate")
+
+
+def trend(history_path: str | Path, output: str | Path | None = None, simulate: bool = False,
+          law: str = "auto", parameters: str = "default", workers: int | None = None,
+          resume: bool = False, show_progress: bool = True) -> tuple[dict, Path]:
+    """Fit each fault's growth over usage and predict its remaining useful life.
+
+    ``history_path`` is a Parquet table, a folder of ``report.json`` files, or
+    (with ``simulate``) a synthetic history YAML whose inspections are simulated
+    and identified first, resumably, under ``OUTPUT/inspections/``. Writes
+    ``trend.json``, ``trend.md`` and ``trend.png``; see :mod:`emaprog.prognosis`.
+    """
+    import os
+
+    from . import campaign as campaigns
+    from . import history as histories
+    from .prognosis import LAWS
+    from .report import plot_trend, trend_markdown
+    from .scenario import load_history
+    from .trend import analyse
+
+    if law not in ("auto", *LAWS):
+        raise InputError("--law", f"unknown law '{law}' (allowed: auto, {', '.join(LAWS)})")
+    history_path = Path(history_path)
+    kind = _history_source(history_path, simulate)
+    folder = Path(output) if output else Path("out") / f"{history_path.stem}-trend"
+    if kind == "synthetic":
+        history, base = load_history(history_path)
+        params = campaigns.load_parameters(history_path, history, base)
+        digest = histories.history_hash(history, base, params)
+        store = campaigns.CaseStore(folder / "inspections")
+        meta = {"history": history.name, "history_file": str(history_path), "history_hash": digest,
+                "actuator": history.actuator, "emaprog_version": __version__}
+        store.open(history_path, digest, {**meta, "history_definition": history.model_dump(mode="json"),
+                                          "base_scenario": base.model_dump(mode="json"),
+                                          "parameter_values": params.values()}, resume)
+        finished = store.finished()
+        todo = [k for k in range(history.inspections.count) if k not in finished]
+        specs = histories.inspection_specs(history, base, params, digest, todo)
+        workers = max(1, min(workers or os.cpu_count() or 1, len(todo) or 1))
+        campaigns.execute(specs, store, meta, len(todo), workers, None,
+                          f"inspections of {history.actuator}", len(finished), show_progress)
+        if len(store.finished()) < 3:
+            raise RuntimeError(f"fewer than 3 inspections identified; errors in {store.failures}")
+        table = histories.from_cases(history, params, store, str(history_path))
+    else:
+        params = parameter_sets.load(parameters)
+        table = (histories.read_reports(history_path) if kind == "reports"
+                 else histories.read_table(history_path))
+    result = analyse(table, params, law)
+    folder.mkdir(parents=True, exist_ok=True)
+    result["figure"] = plot_trend(result, folder / "trend.png").name
+    write_json(folder / "trend.json", result)
+    (folder / "trend.md").write_text(trend_markdown(result))
+    return result, folder

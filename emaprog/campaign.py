@@ -231,10 +231,14 @@ class CaseStore:
         return out
 
     def open(self, source: Path, digest: str, manifest: dict, resume: bool) -> None:
-        """Start or continue the campaign in this folder; refuses to mix campaigns."""
+        """Start or continue the campaign in this folder; refuses to mix campaigns.
+
+        ``digest`` hashes what decides the cases' numbers; it is stored in the
+        manifest as ``content_hash`` and must match on ``resume``.
+        """
         if self.manifest.is_file():
             try:
-                stored = json.loads(self.manifest.read_text())["campaign_hash"]
+                stored = json.loads(self.manifest.read_text())["content_hash"]
             except (json.JSONDecodeError, KeyError, UnicodeDecodeError):
                 raise InputError(self.manifest, "is not a readable campaign manifest; "
                                  "choose another results folder") from None
@@ -253,7 +257,7 @@ class CaseStore:
         for stale in self.cases.glob(".case-*"):  # temporaries of a killed run
             stale.unlink()
         if not self.manifest.is_file():
-            write_json(self.manifest, manifest)
+            write_json(self.manifest, {**manifest, "content_hash": digest})
 
     def write_case(self, row: dict, provenance: dict) -> Path:
         """One case as its own Parquet file, atomically, with provenance in the file metadata."""
@@ -388,8 +392,52 @@ def run_dask(specs: Iterable[CaseSpec], client, on_result: OnResult) -> None:
         raise
 
 
-def load_parameters(campaign_path: Path, campaign: Campaign, base: Scenario) -> Parameters:
-    """The base scenario's parameter set, resolved next to the file that names it."""
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C during a run of cases; the message says what is on disk and how to go on."""
+
+
+def execute(specs: Iterable[CaseSpec], store: CaseStore, provenance: dict, count: int,
+            workers: int, client, label: str, already: int,
+            show_progress: bool = True) -> dict[str, int]:
+    """Run ``count`` cases on the chosen back-end, storing each as it finishes.
+
+    ``client`` (a Dask client) wins over ``workers``; one worker runs the cases
+    in this process. Returns ``{"done": n, "failed": n}``; Ctrl-C raises
+    :class:`Interrupted` once the workers are stopped.
+    """
+    from . import progress
+
+    counts = {"done": 0, "failed": 0}
+    with progress.task(label, count, show_progress) as advance:
+
+        def on_result(result: dict | Failure) -> None:
+            if isinstance(result, Failure):
+                store.write_failure(result)
+                counts["failed"] += 1
+            else:
+                store.write_case(result, {**provenance, "case_id": result["case_id"]})
+                counts["done"] += 1
+            advance(1, done=already + counts["done"], failed=counts["failed"])
+
+        try:
+            if client is not None and count:
+                run_dask(specs, client, on_result)
+            elif workers == 1 or not count:
+                run_serial(specs, on_result)
+            else:
+                run_local(specs, workers, on_result)
+        except KeyboardInterrupt:
+            raise Interrupted(f"{already + counts['done']} cases are stored in {store.cases}; "
+                              "run the same command with --resume to finish") from None
+    return counts
+
+
+def load_parameters(campaign_path: Path, campaign, base: Scenario) -> Parameters:
+    """The base scenario's parameter set, resolved next to the file that names it.
+
+    ``campaign`` is a Campaign or a History: anything with a ``scenario`` that is
+    a path (relative to ``campaign_path``) or an inline Scenario.
+    """
     if isinstance(campaign.scenario, str):
         folder = (campaign_path.parent / campaign.scenario).parent
     else:

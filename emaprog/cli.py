@@ -122,11 +122,19 @@ def identify(
     trace: Annotated[Path, typer.Argument(help="Measured trace (Parquet, SPEC 4 columns).")],
     scenario: ScenarioOption = None,
     output: OutputDir = None,
+    actuator: Annotated[Optional[str], typer.Option(
+        "--actuator", help="Actuator the trace was recorded on (for `emaprog trend`).")] = None,
+    usage: Annotated[Optional[float], typer.Option(
+        "--usage", min=0.0, help="Its usage at the recording [flight hours] (for `emaprog trend`).")] = None,
 ):
     """Identify fault magnitudes in a measured trace with the GA over the Monitor Model."""
     from . import api
 
-    report, folder = api.identify(trace, scenario, output)
+    if (actuator is None) != (usage is None):
+        raise InputError("--actuator/--usage", "give both (an inspection of one actuator at one "
+                         "usage) or neither")
+    inspection = {"actuator": actuator, "usage": usage} if actuator is not None else None
+    report, folder = api.identify(trace, scenario, output, inspection=inspection)
     typer.echo(api.verdict_text(report))
     typer.echo(f"report: {folder / 'report.md'}")
 
@@ -146,6 +154,35 @@ def calibrate(parameters: ParametersOption = "default", output: OutputDir = None
     errors = ", ".join(f"{k} {v:.2f}" for k, v in result["signature_error"].items())
     typer.echo(f"signature errors: {errors}")
     typer.echo(f"calibration: {folder / 'calibration.json'}")
+
+
+@app.command(epilog="Example: emaprog trend configs/history-demo.yaml --simulate -o out/demo-trend")
+@guarded
+def trend(
+    history: Annotated[Path, typer.Argument(
+        help="Parquet history table, folder of report.json, or (with --simulate) a history YAML.")],
+    output: OutputDir = None,
+    simulate: Annotated[bool, typer.Option(
+        "--simulate", help="Simulate and identify the inspections of a synthetic history YAML.")] = False,
+    law: Annotated[str, typer.Option("--law", help="auto | linear | exponential")] = "auto",
+    parameters: Annotated[str, typer.Option(
+        "--parameters", "-p", help="Parameter set of the thresholds (tables and reports).")] = "default",
+    workers: Annotated[Optional[int], typer.Option("--workers", "-w", min=1,
+                       help="Local worker processes for --simulate (default: all cores).")] = None,
+    resume: Annotated[bool, typer.Option("--resume", help="Keep inspections already identified.")] = False,
+):
+    """Fit fault growth over usage and predict the remaining useful life (prognosis)."""
+    from . import api
+
+    result, folder = api.trend(history, output, simulate, law, parameters, workers, resume)
+    for fault, entry in result["faults"].items():
+        rul = entry["rul"]
+        text = ("not detected" if entry["status"] == "not detected" else
+                "beyond horizon" if rul["median"] is None else
+                f"{rul['median']:.0f} h (90 %: {rul['low']:.0f} - "
+                + ("beyond horizon" if rul["high"] is None else f"{rul['high']:.0f} h") + ")")
+        typer.echo(f"{fault:14s} {entry['law'] or '-':11s} RUL {text}")
+    typer.echo(f"trend: {folder / 'trend.md'}")
 
 
 @app.command(epilog="Example: emaprog sweep campaigns/quick.yaml -o out/quick --workers 2")

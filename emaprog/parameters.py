@@ -105,13 +105,15 @@ class Monitor(_Section):
 
 
 class Threshold(_Section):
-    incipient: NonNeg
-    degraded: NonNeg
+    incipient: NonNeg = Field(description="severity from which the fault is reported")
+    degraded: NonNeg = Field(description="severity from which maintenance should be planned")
+    failure: NonNeg = Field(description="severity at which the actuator is to be replaced: "
+                                        "the end of its remaining useful life (emaprog trend)")
 
     @model_validator(mode="after")
     def _ordered(self):
-        if not self.incipient < self.degraded:
-            raise ValueError("incipient must be below degraded")
+        if not self.incipient < self.degraded <= self.failure:
+            raise ValueError("thresholds must satisfy incipient < degraded <= failure")
         return self
 
 

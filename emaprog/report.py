@@ -251,3 +251,110 @@ def plot_error_histograms(errors: dict[str, np.ndarray], tolerances: dict[str, f
     fig.savefig(path, dpi=100)
     plt.close(fig)
     return Path(path)
+
+
+SEVERITY_LABELS = {
+    "friction": "friction |k_f - 1| [-]",
+    "backlash": "backlash [rad]",
+    "short_circuit": "short circuit, worst phase [-]",
+    "eccentricity": "eccentricity zeta [-]",
+}
+
+
+def plot_trend(result: dict, path: str | Path) -> Path:
+    """Estimated severity vs usage per fault: fit, failure threshold, RUL interval, truth."""
+    from .prognosis import growth
+
+    usage = np.array(result["usage"])
+    fig, axes = plt.subplots(2, 2, figsize=(12, 7.5))
+    for ax, (fault, entry) in zip(axes.flat, result["faults"].items()):
+        ax.plot(usage, entry["severity"], "o", ms=4, label="estimated")
+        if entry["truth"] is not None:
+            ax.plot(usage, entry["truth"], "-", color="0.5", lw=1, label="true")
+        rul = entry["rul"]
+        end = usage[-1] + (rul["high"] if rul["high"] is not None else 0.5 * np.ptp(usage))
+        end = max(end, usage[-1] + 0.1 * max(np.ptp(usage), 1.0))
+        grid = np.linspace(usage[0], end, 200)
+        if entry["law"] is not None:
+            ax.plot(grid, growth(entry["law"], grid, entry["a"], entry["b"]), "--",
+                    label=f"{entry['law']} fit")
+        ax.axhline(entry["threshold"], color="tab:red", lw=1, label="failure threshold")
+        ax.axhline(entry["incipient"], color="tab:orange", lw=0.8, ls=":", label="incipient")
+        if rul["low"] is not None:
+            high = usage[-1] + (rul["high"] if rul["high"] is not None else end - usage[-1])
+            ax.axvspan(usage[-1] + rul["low"], high, color="tab:red", alpha=0.12,
+                       label="90 % RUL interval")
+        if rul["median"] is not None:
+            ax.axvline(usage[-1] + rul["median"], color="tab:red", ls="--", lw=0.8)
+        metrics = entry["metrics"]
+        if metrics and metrics["true_failure_at"] is not None:
+            ax.axvline(metrics["true_failure_at"], color="k", lw=0.8, label="true failure")
+        median = ("not detected" if entry["status"] == "not detected" else
+                  "RUL beyond horizon" if rul["median"] is None else f"RUL {rul['median']:.0f} h")
+        ax.set_title(f"{SEVERITY_LABELS[fault]}: {median}", fontsize=9)
+        ax.set_xlabel("usage [flight hours]", fontsize=8)
+        ax.tick_params(labelsize=7)
+        top = max(entry["threshold"] * 1.3, max(entry["severity"]) * 1.1)
+        ax.set_ylim(min(0.0, min(entry["severity"])), top)
+        ax.grid(True, alpha=0.3)
+    axes.flat[0].legend(fontsize=7, loc="upper left")
+    fig.suptitle(f"Degradation trend of {result['actuator']}")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return Path(path)
+
+
+def trend_markdown(result: dict) -> str:
+    """trend.md: the RUL table and, for synthetic histories, the prognostic metrics."""
+    def hours(x):
+        return "beyond horizon" if x is None else f"{x:.0f}"
+
+    rows, metric_rows = [], []
+    for fault, e in result["faults"].items():
+        if e["status"] == "not detected":
+            rows.append(f"| {fault} | — | {e['severity'][-1]:.4g} | {e['threshold']:.4g} | never | "
+                        "not detected | — |")
+            continue
+        rows.append(f"| {fault} | {e['law']} | {e['severity'][-1]:.4g} | {e['threshold']:.4g} | "
+                    f"{hours(e['detected_at'])} | {hours(e['rul']['median'])} | "
+                    f"{hours(e['rul']['low'])} – {hours(e['rul']['high'])} |")
+        m = e["metrics"]
+        if m is not None:
+            metric_rows.append(
+                f"| {fault} | {hours(m['true_rul'])} | {'yes' if m['covered'] else 'no'} | "
+                f"{_fmt(m['relative_accuracy'], '{:.2f}')} | "
+                f"{_fmt(m['mean_relative_accuracy'], '{:.2f}')} | "
+                f"{_fmt(m['alpha_lambda_share'], '{:.0%}')} | "
+                f"{_fmt(m['prognostic_horizon'], '{:.0f}')} |")
+    metrics = ""
+    if metric_rows:
+        metrics = f"""
+## Against the truth (synthetic history)
+
+Relative accuracy RA = 1 - |RUL_true - RUL| / RUL_true; alpha-lambda: share of the
+predictions (one after each inspection since the detection) within +/- {result['settings']['alpha']:.0%} of the
+true RUL; prognostic horizon: true time to failure left when the predictions enter that
+cone for good.
+
+| fault | true RUL [h] | 90 % interval covers it | RA (last) | RA (mean) | alpha-lambda | horizon [h] |
+|---|---|---|---|---|---|---|
+{chr(10).join(metric_rows)}
+"""
+    return f"""# Degradation trend: {result['actuator']}
+
+{result['inspections']} inspections from {result['usage'][0]:.0f} to {result['usage'][-1]:.0f}
+flight hours (`{result['source']}`), parameter set `{result['parameters']}`, emaprog
+{result['emaprog_version']}. Growth law per fault: {result['settings']['law']}
+(linear or exponential, least squares; "auto" takes the lower AIC); RUL to the
+failure threshold from the last inspection, median and 90 % interval of a
+{result['settings']['bootstrap']}-replicate bootstrap whose errors are never smaller than
+the identification's own accuracy. A fault whose estimate never reached its
+incipient threshold is not extrapolated.
+
+| fault | law | last severity | failure threshold | first detected [h] | RUL median [h] | RUL 90 % [h] |
+|---|---|---|---|---|---|---|
+{chr(10).join(rows)}
+{metrics}
+![trend](trend.png)
+"""

@@ -331,8 +331,80 @@ def load_campaign(path: str | Path) -> tuple[Campaign, Scenario]:
 
 
 def load_any(path: str | Path) -> tuple[str, Any]:
-    """Validate a scenario or a campaign file, told apart by the `cases` key."""
+    """Validate a scenario, campaign or history file (told apart by `cases`, `inspections`)."""
     data = load_mapping(path)
     if "cases" in data:
         return "campaign", load_campaign(path)
+    if "inspections" in data:
+        return "history", load_history(path)
     return "scenario", load_scenario(path)
+
+
+# ------------------------------------------------------------------ history
+class GrowthLaw(Strict):
+    """Growth of a fault's severity with usage (see :mod:`emaprog.prognosis`).
+
+    linear: ``s(u) = initial + rate u``; exponential: ``s(u) = initial exp(rate u)``.
+    The severity is the health-threshold scalar: ``k_f - 1`` for friction,
+    the play [rad], the shorted fraction of the faulty phase, zeta.
+    """
+
+    law: Literal["linear", "exponential"]
+    initial: _num(0.0, 5.0, description="severity at usage 0 [-] or [rad]")
+    rate: _num(0.0, 1.0, description="[severity/h] linear, [1/h] exponential")
+    variability: _num(0.0, 2.0, description="[-] lognormal sigma of the rate, drawn once per "
+                                            "history from its seed") = 0.0
+
+
+class ShortCircuitGrowth(GrowthLaw):
+    phase: Literal["a", "b", "c"]
+
+
+class EccentricityGrowth(GrowthLaw):
+    angle: _num(0.0, TWO_PI, description="[rad] angular position of the narrow gap") = 0.0
+
+
+class Growth(Strict):
+    friction: GrowthLaw | None = None
+    backlash: GrowthLaw | None = None
+    short_circuit: ShortCircuitGrowth | None = None
+    eccentricity: EccentricityGrowth | None = None
+
+    @model_validator(mode="after")
+    def _some_fault(self):
+        if not any((self.friction, self.backlash, self.short_circuit, self.eccentricity)):
+            raise ValueError("growth must give a law for at least one fault")
+        return self
+
+
+class Inspections(Strict):
+    start: _num(0.0, 1.0e6, description="[h] usage of the first inspection") = 0.0
+    step: _num(0.0, 1.0e5, lo_open=True, description="[h] usage between inspections")
+    count: Annotated[int, Field(strict=True, ge=3, le=500)]
+
+
+class History(Strict):
+    """A synthetic degradation history (``emaprog trend --simulate``)."""
+
+    name: Name
+    description: str = ""
+    actuator: Name = "actuator-1"
+    seed: Annotated[int, Field(strict=True, ge=0, le=2**32 - 1)] = 0
+    scenario: Union[str, Scenario] = Field(description="base scenario: path or inline mapping")
+    inspections: Inspections
+    growth: Growth
+    identify: IdentifySettings = IdentifySettings()
+
+
+def load_history(path: str | Path) -> tuple[History, Scenario]:
+    """Load a synthetic history and its base scenario (path resolved next to the file)."""
+    from . import parameters
+
+    path = Path(path)
+    history = _validate(History, load_mapping(path), path, SCENARIO_TAGS)
+    if isinstance(history.scenario, str):
+        base = load_scenario(path.parent / history.scenario)
+    else:
+        base = history.scenario
+        parameters.load(base.parameters, relative_to=path.parent, source=path)
+    return history, base

@@ -1,0 +1,231 @@
+"""Degradation histories: one actuator's identification results over its usage.
+
+Three sources, one shape (:class:`HistoryTable`):
+
+* a Parquet table, one row per inspection, sorted by usage: ``actuator``
+  (text), ``usage`` [h], and the estimated ``friction``, ``backlash``,
+  ``short_circuit_a``, ``short_circuit_b``, ``short_circuit_c``,
+  ``eccentricity_zeta`` (SPEC 6 quantity names);
+* a folder of ``report.json`` files written by
+  ``emaprog identify TRACE --actuator ID --usage HOURS`` (searched recursively);
+* a synthetic history YAML (:class:`~emaprog.scenario.History`): the growth
+  laws are applied to the base scenario, each inspection is simulated on the
+  Reference Model and identified with the GA through the sweep's execution and
+  storage (``RESULTS_DIR/inspections/``, resumable).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from . import campaign as campaigns
+from .errors import InputError
+from .faults import QUANTITIES
+from .identification.result import severity
+from .parameters import Parameters
+from .scenario import Faults, History, IdentifySettings, Scenario
+
+FAULTS = ("friction", "backlash", "short_circuit", "eccentricity")
+TABLE_COLUMNS = ("friction", "backlash", "short_circuit_a", "short_circuit_b", "short_circuit_c",
+                 "eccentricity_zeta")
+FAULT_LIMIT = 0.9  # [-] shorted fraction and zeta are capped here (the fault ranges end below 1)
+
+
+class HistoryTable(NamedTuple):
+    actuator: str
+    source: str
+    usage: np.ndarray  # [h], strictly increasing
+    severity: dict[str, np.ndarray]  # estimated severity per fault at each inspection
+    truth: dict[str, np.ndarray] | None  # true severity (synthetic histories only)
+    failure_usage: dict[str, float] | None  # [h] true usage at the failure threshold
+
+
+def _severities(values: list[dict[str, float]]) -> dict[str, np.ndarray]:
+    return {f: np.array([severity(f, v) for v in values]) for f in FAULTS}
+
+
+def _check_usage(usage: np.ndarray, source: str | Path, key: str) -> None:
+    if usage.size < 3:
+        raise InputError(source, f"a history needs at least 3 inspections, got {usage.size}", key)
+    if not np.all(np.isfinite(usage)) or np.any(usage < 0):
+        raise InputError(source, "usage must be finite and >= 0 flight hours", key)
+    if np.any(np.diff(usage) <= 0):
+        raise InputError(source, "inspections must be sorted by usage, each usage once "
+                         "(strictly increasing)", key)
+
+
+def read_table(path: str | Path) -> HistoryTable:
+    """A Parquet history table (module docstring); any problem is an InputError."""
+    path = Path(path)
+    try:
+        table = pq.read_table(path)
+    except (pa.ArrowInvalid, OSError) as exc:
+        raise InputError(path, f"is not a readable Parquet history ({str(exc).splitlines()[0]})") from None
+    names = table.column_names
+    missing = [c for c in ("actuator", "usage", *TABLE_COLUMNS) if c not in names]
+    if missing:
+        raise InputError(path, f"missing column(s) {', '.join(missing)}; a history table needs "
+                         f"actuator, usage, {', '.join(TABLE_COLUMNS)}")
+    actuators = sorted({str(a) for a in table.column("actuator").to_pylist()})
+    if len(actuators) != 1:
+        raise InputError(path, f"holds {len(actuators)} actuators ({', '.join(actuators[:5])}); "
+                         "a history is one actuator's: split the table", "actuator")
+    columns = {}
+    for name in ("usage", *TABLE_COLUMNS):
+        column = table.column(name)
+        if column.null_count or not (pa.types.is_floating(column.type)
+                                     or pa.types.is_integer(column.type)):
+            raise InputError(path, "must be numbers with no missing value", name)
+        columns[name] = column.to_numpy().astype(float)
+        if not np.all(np.isfinite(columns[name])):
+            raise InputError(path, "holds NaN or infinite values", name)
+    _check_usage(columns["usage"], path, "usage")
+    values = [{**{q: healthy for q, (_, healthy) in QUANTITIES.items()},
+               **{c: float(columns[c][k]) for c in TABLE_COLUMNS}}
+              for k in range(columns["usage"].size)]
+    return HistoryTable(actuators[0], str(path), columns["usage"], _severities(values), None, None)
+
+
+def read_reports(folder: str | Path) -> HistoryTable:
+    """The ``report.json`` files under ``folder``, ordered by their inspection usage."""
+    folder = Path(folder)
+    files = sorted(folder.rglob("report.json"))
+    if not files:
+        raise InputError(folder, "holds no report.json (write them with `emaprog identify TRACE "
+                         "--actuator ID --usage HOURS -o DIR`)")
+    entries = []
+    for path in files:
+        try:
+            report = json.loads(path.read_text())
+            inspection = report["inspection"]
+            actuator, usage = str(inspection["actuator"]), float(inspection["usage"])
+            estimate = report["estimate"]
+            values = {
+                "friction": float(estimate["friction"]), "backlash": float(estimate["backlash"]),
+                **{f"short_circuit_{x}": float(estimate["short_circuit"][x]) for x in "abc"},
+                "eccentricity_zeta": float(estimate["eccentricity"]["zeta"]),
+                "eccentricity_phase": float(estimate["eccentricity"]["phase"]),
+            }
+        except (json.JSONDecodeError, UnicodeDecodeError):
+            raise InputError(path, "is not valid JSON") from None
+        except (KeyError, TypeError, ValueError):
+            raise InputError(path, "lacks inspection.actuator, inspection.usage or a full estimate "
+                             "(identify with --actuator ID --usage HOURS)", "inspection") from None
+        entries.append((usage, actuator, values, path))
+    actuators = sorted({e[1] for e in entries})
+    if len(actuators) != 1:
+        raise InputError(folder, f"mixes actuators ({', '.join(actuators[:5])}); a history is one "
+                         "actuator's reports", "inspection.actuator")
+    entries.sort(key=lambda e: e[0])
+    usage = np.array([e[0] for e in entries])
+    repeated = [str(e[3]) for a, e in zip(entries, entries[1:]) if e[0] == a[0]]
+    if repeated:
+        raise InputError(repeated[0], "repeats the usage of another report", "inspection.usage")
+    _check_usage(usage, folder, "inspection.usage")
+    return HistoryTable(actuators[0], str(folder), usage, _severities([e[2] for e in entries]),
+                        None, None)
+
+
+# ---------------------------------------------------------------- synthetic histories
+class Degradation(NamedTuple):
+    """One fault's realised growth law in a synthetic history."""
+
+    law: str
+    initial: float
+    rate: float  # the history's draw (law rate x lognormal variability)
+
+
+def realised_laws(history: History) -> dict[str, Degradation]:
+    """Each growing fault's law with its rate drawn from the history seed (fixed order)."""
+    rng = np.random.default_rng(np.random.SeedSequence(history.seed))
+    draws = rng.standard_normal(len(FAULTS))
+    laws = {}
+    for fault, z in zip(FAULTS, draws):
+        spec = getattr(history.growth, fault)
+        if spec is not None:
+            laws[fault] = Degradation(spec.law, spec.initial,
+                                      spec.rate * math.exp(spec.variability * z))
+    return laws
+
+
+def _severity_at(law: Degradation, usage: float) -> float:
+    if law.law == "linear":
+        return law.initial + law.rate * usage
+    return law.initial * math.exp(min(law.rate * usage, 700.0))
+
+
+def true_faults(history: History, laws: dict[str, Degradation], usage: float) -> Faults:
+    """The actuator's faults at ``usage`` [h] (capped to the fault ranges)."""
+    s = {f: _severity_at(law, usage) for f, law in laws.items()}
+    short = {"a": 0.0, "b": 0.0, "c": 0.0}
+    if "short_circuit" in s:
+        short[history.growth.short_circuit.phase] = min(s["short_circuit"], FAULT_LIMIT)
+    ecc = {"zeta": 0.0, "phase": 0.0}
+    if "eccentricity" in s:
+        ecc = {"zeta": min(s["eccentricity"], FAULT_LIMIT), "phase": history.growth.eccentricity.angle}
+    return Faults.model_validate({
+        "friction": min(1.0 + s.get("friction", 0.0), 10.0),
+        "backlash": min(s.get("backlash", 0.0), 0.01),
+        "short_circuit": short, "eccentricity": ecc,
+    })
+
+
+def failure_usage(law: Degradation, threshold: float) -> float:
+    """True usage at which a realised law reaches ``threshold`` [h] (inf: never)."""
+    if law.initial >= threshold:
+        return 0.0
+    if law.rate <= 0 or (law.law == "exponential" and law.initial <= 0):
+        return math.inf
+    if law.law == "linear":
+        return (threshold - law.initial) / law.rate
+    return math.log(threshold / law.initial) / law.rate
+
+
+def history_hash(history: History, base: Scenario, params: Parameters) -> str:
+    content = {"history": history.model_dump(mode="json", exclude={"scenario"}),
+               "scenario": base.model_dump(mode="json"), "parameters": params.values()}
+    return hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()
+
+
+def inspection_specs(history: History, base: Scenario, params: Parameters, digest: str,
+                     indices: list[int]) -> list[campaigns.CaseSpec]:
+    """One case per inspection: the true faults at its usage, its own noise and GA seeds."""
+    laws = realised_laws(history)
+    settings = history.identify if "identify" in history.model_fields_set else base.identify
+    specs = []
+    for k in indices:
+        usage = history.inspections.start + k * history.inspections.step
+        rng = np.random.default_rng(np.random.SeedSequence(history.seed, spawn_key=(k,)))
+        noise_seed, ga_seed = (int(s) for s in rng.integers(0, campaigns.SEED_LIMIT, size=2))
+        scenario = Scenario.model_validate({
+            **base.model_dump(mode="json"), "name": f"{history.actuator}-{k}", "seed": noise_seed,
+            "faults": true_faults(history, laws, usage).model_dump(mode="json"),
+            "identify": settings.model_dump(mode="json"),
+        })
+        case_settings = IdentifySettings.model_validate({
+            **settings.model_dump(mode="json"),
+            "ga": {**settings.ga.model_dump(mode="json"), "seed": ga_seed}})
+        specs.append(campaigns.CaseSpec(k, False, scenario, params, case_settings, digest))
+    return specs
+
+
+def from_cases(history: History, params: Parameters, store: campaigns.CaseStore,
+               source: str) -> HistoryTable:
+    """The history table of a finished synthetic history (truth included)."""
+    frame = store.read()
+    usage = history.inspections.start + frame["case_id"].to_numpy(float) * history.inspections.step
+    estimated = [{q: float(row[f"est_{q}"]) for q in QUANTITIES} for _, row in frame.iterrows()]
+    true = [{q: float(row[f"true_{q}"]) for q in QUANTITIES} for _, row in frame.iterrows()]
+    laws = realised_laws(history)
+    failure = {f: failure_usage(law, getattr(params.spec.health, f).failure)
+               for f, law in laws.items()}
+    return HistoryTable(history.actuator, source, usage, _severities(estimated),
+                        _severities(true), failure)
