@@ -135,6 +135,6 @@ def test_unknown_model_is_refused():
 
 
 def test_every_command_help_ends_with_an_example():
-    for command in ("check", "simulate", "identify", "calibrate", "sweep"):
+    for command in ("check", "simulate", "identify", "calibrate", "sweep", "trend"):
         result = runner.invoke(app, [command, "--help"])
         assert result.exit_code == 0 and "Example: emaprog " + command in result.output
