@@ -120,18 +120,23 @@ def case_specs(campaign: Campaign, base: Scenario, params: Parameters, campaign_
     settings = identify_settings(campaign, base)
     for case_id in case_ids:
         healthy, faults, noise_seed, ga_seed = sample_case(campaign, case_id)
-        scenario = Scenario.model_validate({
-            **base.model_dump(mode="json"),
-            "name": f"{campaign.name}-case-{case_id}",
-            "seed": noise_seed,
-            "faults": faults.model_dump(mode="json"),
-            "identify": settings.model_dump(mode="json"),
-        })
-        case_settings = IdentifySettings.model_validate({
-            **settings.model_dump(mode="json"),
-            "ga": {**settings.ga.model_dump(mode="json"), "seed": ga_seed},
-        })
-        yield CaseSpec(case_id, healthy, scenario, params, case_settings, campaign_hash)
+        yield make_spec(case_id, healthy, f"{campaign.name}-case-{case_id}", base, faults,
+                        noise_seed, ga_seed, settings, params, campaign_hash)
+
+
+def make_spec(case_id: int, healthy: bool, name: str, base: Scenario, faults: Faults,
+              noise_seed: int, ga_seed: int, settings: IdentifySettings, params: Parameters,
+              digest: str) -> CaseSpec:
+    """One case: the base scenario with these faults and noise seed, the GA with its seed."""
+    scenario = Scenario.model_validate({
+        **base.model_dump(mode="json"), "name": name, "seed": noise_seed,
+        "faults": faults.model_dump(mode="json"), "identify": settings.model_dump(mode="json"),
+    })
+    case_settings = IdentifySettings.model_validate({
+        **settings.model_dump(mode="json"),
+        "ga": {**settings.ga.model_dump(mode="json"), "seed": ga_seed},
+    })
+    return CaseSpec(case_id, healthy, scenario, params, case_settings, digest)
 
 
 # ---------------------------------------------------------------- one case

@@ -31,7 +31,7 @@ from .errors import InputError
 from .faults import QUANTITIES
 from .identification.result import severity
 from .parameters import Parameters
-from .scenario import Faults, History, IdentifySettings, Scenario
+from .scenario import Faults, History, Scenario
 
 FAULTS = ("friction", "backlash", "short_circuit", "eccentricity")
 TABLE_COLUMNS = ("friction", "backlash", "short_circuit_a", "short_circuit_b", "short_circuit_c",
@@ -205,15 +205,9 @@ def inspection_specs(history: History, base: Scenario, params: Parameters, diges
         usage = history.inspections.start + k * history.inspections.step
         rng = np.random.default_rng(np.random.SeedSequence(history.seed, spawn_key=(k,)))
         noise_seed, ga_seed = (int(s) for s in rng.integers(0, campaigns.SEED_LIMIT, size=2))
-        scenario = Scenario.model_validate({
-            **base.model_dump(mode="json"), "name": f"{history.actuator}-{k}", "seed": noise_seed,
-            "faults": true_faults(history, laws, usage).model_dump(mode="json"),
-            "identify": settings.model_dump(mode="json"),
-        })
-        case_settings = IdentifySettings.model_validate({
-            **settings.model_dump(mode="json"),
-            "ga": {**settings.ga.model_dump(mode="json"), "seed": ga_seed}})
-        specs.append(campaigns.CaseSpec(k, False, scenario, params, case_settings, digest))
+        specs.append(campaigns.make_spec(k, False, f"{history.actuator}-{k}", base,
+                                         true_faults(history, laws, usage), noise_seed, ga_seed,
+                                         settings, params, digest))
     return specs
 
 

@@ -316,18 +316,24 @@ class Campaign(Strict):
     identify: IdentifySettings = IdentifySettings()
 
 
-def load_campaign(path: str | Path) -> tuple[Campaign, Scenario]:
-    """Load a campaign and its base scenario (path resolved next to the campaign)."""
+def _base_scenario(scenario: str | Scenario, path: Path) -> Scenario:
+    """A campaign's or history's base scenario: a path next to ``path``, or inline.
+
+    Either way its parameter set must exist (checked now, not when cases run).
+    """
     from . import parameters
 
+    if isinstance(scenario, str):
+        return load_scenario(path.parent / scenario)
+    parameters.load(scenario.parameters, relative_to=path.parent, source=path)
+    return scenario
+
+
+def load_campaign(path: str | Path) -> tuple[Campaign, Scenario]:
+    """Load a campaign and its base scenario (path resolved next to the campaign)."""
     path = Path(path)
     campaign = _validate(Campaign, load_mapping(path), path, SCENARIO_TAGS)
-    if isinstance(campaign.scenario, str):
-        base = load_scenario(path.parent / campaign.scenario)
-    else:
-        base = campaign.scenario
-        parameters.load(base.parameters, relative_to=path.parent, source=path)
-    return campaign, base
+    return campaign, _base_scenario(campaign.scenario, path)
 
 
 def load_any(path: str | Path) -> tuple[str, Any]:
@@ -398,13 +404,6 @@ class History(Strict):
 
 def load_history(path: str | Path) -> tuple[History, Scenario]:
     """Load a synthetic history and its base scenario (path resolved next to the file)."""
-    from . import parameters
-
     path = Path(path)
     history = _validate(History, load_mapping(path), path, SCENARIO_TAGS)
-    if isinstance(history.scenario, str):
-        base = load_scenario(path.parent / history.scenario)
-    else:
-        base = history.scenario
-        parameters.load(base.parameters, relative_to=path.parent, source=path)
-    return history, base
+    return history, _base_scenario(history.scenario, path)
