@@ -13,10 +13,12 @@ from .prognosis import BOOTSTRAP, MIN_POINTS, alpha_lambda, predict, prognostic_
 
 ALPHA = 0.2  # [-] half width of the alpha-lambda cone around the true RUL
 
-#: Accuracy of one identification (1 sigma of the estimate error, in severity units):
-#: the 95th percentiles of |error| on the 50-case quick campaign (docs/sweep/quick) over
-#: 1.96 -- friction 2.5 % of k_f ~ 1.5, backlash 3.7e-5 rad, shorted fraction 0.04,
-#: zeta 0.11. The RUL bootstrap never assumes the estimates better than this.
+#: Accuracy of one identification (1 sigma of the estimate error, in severity units),
+#: kept conservative: the 95th percentiles of |error| over 1.96 on the 50-case quick
+#: campaign before the pair eccentricity law (friction 2.5 % of k_f ~ 1.5, backlash
+#: 3.7e-5 rad, shorted fraction 0.04, zeta 0.11). Today's p95 are 2-5 times smaller
+#: (docs/sweep/quick) but the tails are not (largest shorted-fraction error 0.07).
+#: The RUL bootstrap never assumes the estimates better than this.
 IDENTIFICATION_SIGMA = {"friction": 0.019, "backlash": 1.9e-5, "short_circuit": 0.02,
                         "eccentricity": 0.055}
 

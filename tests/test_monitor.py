@@ -177,3 +177,26 @@ def test_calibrate_finds_a_linear_z_zeta_law(tmp_path):
     assert max(cal["signature_error"].values()) < 0.35
     assert (tmp_path / "z_vs_zeta.png").stat().st_size > 5000
     assert (builtin_dir() / "default.yaml").read_text() == shipped
+
+
+def test_pair_eccentricity_law_is_the_reference_law_on_the_active_pair():
+    """Flat-top pair gain k_p + k_q of the Monitor's pair law equals the Reference's
+    k N_p (1 + zeta m_p) + k N_q (1 + zeta m_q) with zeta = 2 Z, shorted phase or not;
+    with balanced phases it is the paper-style form 2 k (1 - Z s)."""
+    import math
+
+    from emaprog.kernels.bldc import NEGATIVE_PHASE, POSITIVE_PHASE, phase_coefficient, sector
+    from emaprog.kernels.monitor import eccentricity_shape, pair_eccentricity_coefficients
+
+    k, z, phi = 0.15, 0.12, 0.7
+    for working in (np.ones(3), np.array([0.65, 1.0, 0.9])):
+        for theta_e in np.linspace(0.0, 2 * math.pi, 37):
+            s6 = sector(theta_e)
+            p, q = POSITIVE_PHASE[s6], NEGATIVE_PHASE[s6]
+            gain = pair_eccentricity_coefficients(theta_e, s6, z, phi, working, k, np.empty(3))
+            reference = (phase_coefficient(theta_e, working[p], 2 * z, phi, p, k)
+                         + phase_coefficient(theta_e, working[q], 2 * z, phi, q, k))
+            assert gain == pytest.approx(reference, rel=1e-12)
+            if working.min() == 1.0:
+                shape = eccentricity_shape(theta_e, s6, phi, ECCENTRICITY_PAIR)
+                assert gain == pytest.approx(2 * k * (1 - z * shape), rel=1e-12)

@@ -87,6 +87,30 @@ def eccentricity_shape(theta_e, s6, phi, model):
 
 
 @njit(cache=True)
+def pair_eccentricity_coefficients(theta_e, s6, z, phi, phase_working, unit_k, k_phase):
+    """Per-phase coefficients under the ``pair`` RE law, written into ``k_phase`` [V s/rad].
+
+    ``k_x = k N_x (1 + 2 Z cos(theta_e + phi + beta_x))``: the Reference law with
+    ``zeta = 2 Z``, each phase's modulation scaled by its own working fraction
+    ``N_x``. The pair's gain ``k_p + k_q`` is then ``2 k (f + Z (N_p m_p + N_q m_q))``
+    with ``f = (N_p + N_q)/2``: with balanced phases exactly ``2 k f (1 - Z s)`` of
+    :func:`eccentricity_shape`; with a shorted phase the modulation of that phase
+    shrinks with it, as in the Reference (a short circuit and an eccentricity
+    together otherwise leave a cross term the identification takes for error).
+    Only two cosines are computed: the three sum to zero.
+    """
+    p = POSITIVE_PHASE[s6]
+    q = NEGATIVE_PHASE[s6]
+    m_p = math.cos(theta_e + phi + PHASE_OFFSET[p])
+    m_q = math.cos(theta_e + phi + PHASE_OFFSET[q])
+    k_phase[p] = unit_k * phase_working[p] * (1.0 + 2.0 * z * m_p)
+    k_phase[q] = unit_k * phase_working[q] * (1.0 + 2.0 * z * m_q)
+    o = IDLE_PHASE[s6]
+    k_phase[o] = unit_k * phase_working[o] * (1.0 - 2.0 * z * (m_p + m_q))
+    return k_phase[p] + k_phase[q]
+
+
+@njit(cache=True)
 def equivalent_branch_step(current, current_ref, gain, resistance, a, omega, vdc):
     """Exact RL update of the equivalent branch under a saturated ideal regulator [A].
 
@@ -195,10 +219,15 @@ def simulate_monitor(command, load_torque, load_stiffness, elec, mech, ctrl, sen
         sector_decay[s6] = math.exp(-base_r * f_psc * dt / (base_l * f_l))
     eccentric = faults.ecc_magnitude != 0.0
     working = np.array([n_a, n_b, n_c])
-    k_phase = np.empty(3)
-    r_phase = working * elec.phase_resistance
-    l_phase = working * working * elec.phase_inductance
+    if short_circuit_model == SHORT_CIRCUIT_AVERAGED:
+        n_eq = (n_a + n_b + n_c) / 3.0
+        phase_working = np.array([n_eq, n_eq, n_eq])
+    else:
+        phase_working = working.copy()
+    r_phase = phase_working * elec.phase_resistance
+    l_phase = phase_working * phase_working * elec.phase_inductance
     unit_k = gain_scale * elec.back_emf_constant
+    k_phase = unit_k * phase_working
     outgoing = 0.0  # [A] freewheeling current of the phase that last left the pair
     last_sector = sector(0.0)
     theta_m = 0.0
@@ -222,11 +251,17 @@ def simulate_monitor(command, load_torque, load_stiffness, elec, mech, ctrl, sen
         for _ in range(substeps):
             theta_e = pp * theta_m
             s6 = sector(theta_e)
-            ecc = 1.0
-            if eccentric:
+            gain = sector_gain[s6]
+            if eccentric and eccentricity_model == ECCENTRICITY_PAPER:
                 ecc = 1.0 - faults.ecc_magnitude * eccentricity_shape(
                     theta_e, s6, faults.ecc_phase, eccentricity_model)
-            gain = sector_gain[s6] * ecc
+                gain *= ecc
+                for x in range(3):
+                    k_phase[x] = unit_k * phase_working[x] * ecc
+            elif eccentric:
+                gain = pair_eccentricity_coefficients(theta_e, s6, faults.ecc_magnitude,
+                                                      faults.ecc_phase, phase_working, unit_k,
+                                                      k_phase)
             if s6 != last_sector and commutation:
                 # the new idle phase was in the old pair: it keeps its current
                 idle = IDLE_PHASE[s6]
@@ -234,8 +269,6 @@ def simulate_monitor(command, load_torque, load_stiffness, elec, mech, ctrl, sen
                 i = 0.5 * i  # the common phase alone carries the old current
             last_sector = s6
             if outgoing != 0.0:
-                for x in range(3):
-                    k_phase[x] = unit_k * working[x] * ecc
                 i, outgoing, torque, measured = commutation_step(
                     i, outgoing, current_ref, s6, theta_e, omega_m, k_phase, r_phase, l_phase,
                     elec.dc_bus_voltage, dt)
