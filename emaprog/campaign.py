@@ -40,7 +40,6 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from . import __version__
 from . import parameters as parameter_sets
 from .errors import InputError
 from .faults import QUANTITIES, flatten

@@ -14,7 +14,7 @@ from typing import Annotated, Any, Literal, Optional, Union
 from pydantic import (BaseModel, ConfigDict, Field, ValidationError, ValidationInfo,
                       field_validator, model_validator)
 
-from .errors import InputError, from_validation_error
+from .errors import from_validation_error
 from .yamlfile import load_mapping
 
 TWO_PI = 2.0 * math.pi
