@@ -75,6 +75,40 @@ def _fit_one(law: str, usage: np.ndarray, severity: np.ndarray) -> tuple[float, 
     return float(a), float(b)
 
 
+GAUSS_NEWTON_STEPS = 12  # from the fit of the data every replicate is a small step away
+
+
+def _refit_replicates(best: "TrendFit", usage: np.ndarray,
+                      replicates: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares law parameters of every bootstrap replicate (rows), all at once.
+
+    Linear: one ``lstsq`` for all rows. Exponential: Gauss-Newton on
+    ``a exp(b u)`` started from the data's fit ``best`` (usage scaled to [0, 1]
+    for conditioning), vectorised over the replicates.
+    """
+    if best.law == "linear":
+        design = np.column_stack([np.ones_like(usage), usage])
+        (a, b), *_ = np.linalg.lstsq(design, replicates.T, rcond=None)
+        return a, b
+    scale = max(float(usage.max()), 1.0)
+    x = usage / scale
+    a = np.full(replicates.shape[0], best.a)
+    b = np.full(replicates.shape[0], best.b * scale)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        for _ in range(GAUSS_NEWTON_STEPS):
+            e = np.exp(np.clip(b[:, None] * x, -700.0, 700.0))
+            model = a[:, None] * e
+            residual = replicates - model
+            ja, jb = e, model * x
+            a11, a12, a22 = (ja * ja).sum(1), (ja * jb).sum(1), (jb * jb).sum(1)
+            g1, g2 = (ja * residual).sum(1), (jb * residual).sum(1)
+            damping = 1e-9 * (a11 + a22)
+            det = (a11 + damping) * (a22 + damping) - a12 * a12
+            a = a + ((a22 + damping) * g1 - a12 * g2) / det
+            b = b + ((a11 + damping) * g2 - a12 * g1) / det
+    return np.nan_to_num(a, nan=0.0), np.nan_to_num(b / scale, nan=0.0)
+
+
 class TrendFit(NamedTuple):
     law: str
     a: float
@@ -126,11 +160,9 @@ def predict(usage: np.ndarray, severity: np.ndarray, threshold: float, law: str 
     fitted = growth(best.law, usage, best.a, best.b)
     spread = max(best.sigma, noise_floor)
     rng = np.random.default_rng(np.random.SeedSequence(seed))
-    samples = np.empty(BOOTSTRAP)
-    for k in range(BOOTSTRAP):
-        replicate = fitted + rng.normal(0.0, spread, size=fitted.size)
-        a, b = _fit_one(best.law, usage, replicate)
-        samples[k] = crossing(best.law, a, b, threshold) - now
+    replicates = fitted + rng.normal(0.0, spread, size=(BOOTSTRAP, fitted.size))
+    a, b = _refit_replicates(best, usage, replicates)
+    samples = np.array([crossing(best.law, ai, bi, threshold) for ai, bi in zip(a, b)]) - now
     samples = np.clip(samples, 0.0, 2.0 * HORIZON)  # past the horizon: kept finite to rank
     low, median, high = (float(np.percentile(samples, q)) for q in (5, 50, 95))
     low, median, high = (x if x <= HORIZON else math.inf for x in (low, median, high))
