@@ -169,3 +169,25 @@ def test_simulated_history_end_to_end_and_resumable(tmp_path):
     assert json.loads((out / "trend.json").read_text())["faults"] == report["faults"]
     refused = runner.invoke(app, ["trend", str(path), "--simulate", "-o", str(out)])
     assert refused.exit_code == 2 and "--resume" in refused.output
+
+
+@pytest.mark.parametrize("change,fragment", [
+    ({"growth": {"friction": {"law": "cubic", "initial": 0.1, "rate": 1e-4}}}, "growth.friction.law"),
+    ({"growth": {}}, "at least one fault"),
+    ({"inspections": {"step": 250.0, "count": 2}}, "inspections.count"),
+    ({"growth": {"short_circuit": {"law": "linear", "initial": 0.0, "rate": 1e-4}}},
+     "growth.short_circuit.phase"),
+    ({"surprise": 1}, "unknown key 'surprise'"),
+])
+def test_bad_history_yaml_is_refused_with_its_key(tmp_path, change, fragment):
+    from .conftest import CONFIGS
+
+    data = yaml.safe_load((CONFIGS / "history-demo.yaml").read_text())
+    data["scenario"] = str(CONFIGS / "chirp-nominal.yaml")
+    data.update(change)
+    path = tmp_path / "history.yaml"
+    path.write_text(yaml.safe_dump(data))
+    for args in (["check", str(path)], ["trend", str(path), "--simulate", "-o", str(tmp_path / "o")]):
+        result = runner.invoke(app, args)
+        assert result.exit_code == 2 and fragment in result.output, result.output
+    assert not (tmp_path / "o").exists()
