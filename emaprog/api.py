@@ -223,7 +223,6 @@ def sweep(campaign_path: str | Path, output: str | Path | None = None, workers: 
 
 def _sweep(campaign_path: Path, campaign, base, params, output, workers, client, resume,
            baseline, reference_summary, show_progress) -> SweepOutcome:
-    import os
     import time
 
     from . import campaign as campaigns
@@ -244,7 +243,7 @@ def _sweep(campaign_path: Path, campaign, base, params, output, workers, client,
     finished = store.finished()
     todo = [k for k in range(campaign.cases) if k not in finished]
     specs = campaigns.case_specs(campaign, base, params, digest, todo)
-    workers = max(1, min(workers or os.cpu_count() or 1, len(todo) or 1))
+    workers = campaigns.worker_count(workers, len(todo))
     start = time.perf_counter()
     counts = campaigns.execute(specs, store, meta, len(todo), workers, client,
                                f"sweep {campaign.name}", len(finished), show_progress)
@@ -269,7 +268,7 @@ def _sweep(campaign_path: Path, campaign, base, params, output, workers, client,
     if reference_summary is not None:
         summary["regression"] = {"baseline": str(baseline), "worse": regressions}
     write_json(folder / "summary.json", summary)
-    (folder / "summary.md").write_text(markdown(summary, summary))
+    (folder / "summary.md").write_text(markdown(summary))
     return SweepOutcome(folder, summary, counts["done"] + counts["failed"], len(finished),
                         summary["failed"], regressions)
 
@@ -303,8 +302,6 @@ def trend(history_path: str | Path, output: str | Path | None = None, simulate: 
     and identified first, resumably, under ``OUTPUT/inspections/``. Writes
     ``trend.json``, ``trend.md`` and ``trend.png``; see :mod:`emaprog.prognosis`.
     """
-    import os
-
     from . import campaign as campaigns
     from . import history as histories
     from .prognosis import LAWS
@@ -330,7 +327,7 @@ def trend(history_path: str | Path, output: str | Path | None = None, simulate: 
         finished = store.finished()
         todo = [k for k in range(history.inspections.count) if k not in finished]
         specs = histories.inspection_specs(history, base, params, digest, todo)
-        workers = max(1, min(workers or os.cpu_count() or 1, len(todo) or 1))
+        workers = campaigns.worker_count(workers, len(todo))
         campaigns.execute(specs, store, meta, len(todo), workers, None,
                           f"inspections of {history.actuator}", len(finished), show_progress)
         if len(store.finished()) < 3:

@@ -400,6 +400,11 @@ class Interrupted(KeyboardInterrupt):
     """Ctrl-C during a run of cases; the message says what is on disk and how to go on."""
 
 
+def worker_count(requested: int | None, cases: int) -> int:
+    """Local workers for ``cases`` cases: as asked (default all cores), never more than cases."""
+    return max(1, min(requested or os.cpu_count() or 1, cases or 1))
+
+
 def execute(specs: Iterable[CaseSpec], store: CaseStore, provenance: dict, count: int,
             workers: int, client, label: str, already: int,
             show_progress: bool = True) -> dict[str, int]:

@@ -180,8 +180,9 @@ def _cell(value, fmt: str = "{:.3g}") -> str:
     return fmt.format(value)
 
 
-def markdown(summary: dict, meta: dict) -> str:
-    """summary.md: the tables of :func:`summarize` for a person, figures embedded."""
+def markdown(summary: dict) -> str:
+    """summary.md from summary.json: the tables of :func:`summarize` and the run's
+    provenance (campaign, hash, scenario, parameters, seed) for a person, figures embedded."""
     rows = []
     for quantity, s in summary["errors"].items():
         rows.append(f"| {quantity} | {s['measure']} [{s['unit']}] | {s['n']} | {_cell(s['bias'])} | "
@@ -196,12 +197,12 @@ def markdown(summary: dict, meta: dict) -> str:
     matrix = "\n".join(f"| {t} | " + " | ".join(str(confusion[t][e]) for e in PHASES) + " |"
                        for t in PHASES)
     fa = summary["false_alarms"]
-    failures = meta.get("failed", 0)
-    return f"""# Campaign {meta['campaign']}: {summary['cases']} cases
+    failures = summary.get("failed", 0)
+    return f"""# Campaign {summary['campaign']}: {summary['cases']} cases
 
-Campaign `{meta['campaign_file']}` (hash `{meta['campaign_hash'][:12]}`), base scenario
-`{meta['scenario']}`, parameter set `{meta['parameters']}`, seed {meta['seed']},
-emaprog {meta['emaprog_version']}. Finished cases: {summary['cases']} of {meta['planned']};
+Campaign `{summary['campaign_file']}` (hash `{summary['campaign_hash'][:12]}`), base scenario
+`{summary['scenario']}`, parameter set `{summary['parameters']}`, seed {summary['seed']},
+emaprog {summary['emaprog_version']}. Finished cases: {summary['cases']} of {summary['planned']};
 failed: {failures}{' (see failures/)' if failures else ''}.
 
 ## Identification error
