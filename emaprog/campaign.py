@@ -269,8 +269,12 @@ class CaseStore:
         table = table.replace_schema_metadata({b"emaprog": json.dumps(provenance).encode()})
         name = CASE_FILE.format(row["case_id"])
         tmp = self.cases / f".{name}.{os.getpid()}.tmp"
-        pq.write_table(table, tmp)
-        os.replace(tmp, self.cases / f"{name}.parquet")
+        try:
+            pq.write_table(table, tmp)
+            os.replace(tmp, self.cases / f"{name}.parquet")
+        except BaseException:  # Ctrl-C or a full disk mid-write: leave no temporary behind
+            tmp.unlink(missing_ok=True)
+            raise
         stale_failure = self.failures / f"{name}.json"
         if stale_failure.exists():
             stale_failure.unlink()

@@ -105,7 +105,7 @@ def _terminal(leg, current, vdc):
 
 
 @njit(cache=True)
-def _star_rates(v, tied, i, e, r, l, vdc):
+def star_rates(v, tied, i, e, r, l, vdc):
     """Current derivatives of the star-connected windings; returns (dia, dib, dic, v_n).
 
     With all three terminals tied, the neutral follows from ``sum di/dt = 0``:
@@ -148,7 +148,7 @@ def winding_step(i, legs, e, r, l, vdc, dt, v, tied):
         vx, t = _terminal(legs[x], i[x], vdc)
         v[x] = vx
         tied[x] = 1 if t else 0
-    dia, dib, dic, vn = _star_rates(v, tied, i, e, r, l, vdc)
+    dia, dib, dic, vn = star_rates(v, tied, i, e, r, l, vdc)
     # A floating terminal whose potential leaves the rails starts conducting.
     for x in range(3):
         if tied[x] == 0 and tied[0] + tied[1] + tied[2] == 2:
@@ -156,7 +156,7 @@ def winding_step(i, legs, e, r, l, vdc, dt, v, tied):
             if vx > vdc or vx < 0.0:
                 v[x] = vdc if vx > vdc else 0.0
                 tied[x] = 1
-                ra, rb, rc, vn2 = _star_rates(v, tied, i, e, r, l, vdc)
+                ra, rb, rc, vn2 = star_rates(v, tied, i, e, r, l, vdc)
                 rate_x = (ra, rb, rc)[x]
                 # the diode admits only the current direction its rail implies
                 if (vx > vdc and rate_x < 0.0) or (vx < 0.0 and rate_x > 0.0):
