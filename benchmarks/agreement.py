@@ -18,7 +18,9 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from emaprog import parameters  # noqa: E402
-from emaprog.faults import HEALTHY, to_params  # noqa: E402
+from emaprog.faults import (  # noqa: E402
+    HEALTHY, flatten, monitor_form, reference_form, values_of,
+)
 from emaprog.identification.objective import low_pass  # noqa: E402
 from emaprog.kernels.monitor import SHORT_CIRCUIT_AVERAGED  # noqa: E402
 from emaprog.models import monitor, reference  # noqa: E402
@@ -37,20 +39,22 @@ def main(path: Path = ROOT / "docs" / "agreement.png") -> Path:
     scenario = load_scenario(ROOT / "configs" / "fig10-multiple-faults.yaml")
     inp = inputs(scenario, params)
     c = params.spec.monitor.eccentricity_gain
-    flags = monitor.model_flags(params)
-    averaged = (SHORT_CIRCUIT_AVERAGED,) + flags[1:]
+    opts = monitor.options(params)
+    averaged = opts._replace(short_circuit_model=SHORT_CIRCUIT_AVERAGED)
     psc = HEALTHY._replace(short_a=0.3)
+    fig10 = flatten(scenario.faults)
     cases = [
-        ("healthy", HEALTHY, HEALTHY, flags),
-        ("Fig. 10 faults", to_params(scenario.faults), to_params(scenario.faults, c), flags),
-        ("PSC A 0.3, modulated law", psc, psc, flags),
-        ("PSC A 0.3, averaged law", psc, psc, averaged),
-        ("PSC A 0.3, modulated law, no commutation transients", psc, psc, flags[:4] + (False,)),
+        ("healthy", HEALTHY, opts),
+        ("Fig. 10 faults", reference_form(fig10), opts),
+        ("PSC A 0.3, modulated law", psc, opts),
+        ("PSC A 0.3, averaged law", psc, averaged),
+        ("PSC A 0.3, modulated law, no commutation transients", psc,
+         opts._replace(commutation=False)),
     ]
     fig, axes = plt.subplots(len(cases), 1, figsize=(10, 2.6 * len(cases)), sharex=True)
-    for ax, (title, ref_faults, mon_faults, mon_flags) in zip(axes, cases):
-        ref, _ = reference.run(params, inp, ref_faults, with_noise=False)
-        mon = monitor.run(params, inp, mon_faults, flags=mon_flags)
+    for ax, (title, faults, mon_opts) in zip(axes, cases):
+        ref, _ = reference.run(params, inp, faults, with_noise=False)
+        mon = monitor.run(params, inp, monitor_form(values_of(faults), c), opts=mon_opts)
         r, m = low_pass(ref["current"], 10), low_pass(mon["current"], 10)
         ax.plot(inp.time, r, lw=0.9, label="Reference (3-phase, hysteresis)")
         ax.plot(inp.time, m, lw=0.9, ls="--", label="Monitor (single-phase)")

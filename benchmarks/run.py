@@ -21,7 +21,7 @@ import numpy as np
 import yaml
 
 from emaprog import api, parameters
-from emaprog.faults import HEALTHY, to_params
+from emaprog.faults import flatten, healthy_values, monitor_form, reference_form
 from emaprog.identification.objective import Objective
 from emaprog.models import monitor, reference
 from emaprog.models.common import inputs
@@ -66,14 +66,15 @@ def measure(repeat: int) -> dict[str, float]:
     scenario = load_scenario(FIG10)
     params = parameters.load("default")
     inp = inputs(scenario, params)
-    faults = to_params(scenario.faults)
+    faults = reference_form(flatten(scenario.faults))
+    healthy = monitor_form(healthy_values(), params.spec.monitor.eccentricity_gain)
     figures: dict[str, float] = {}
 
     numba.set_num_threads(1)  # "one core" figures
     figures["reference_chirp_ms"] = 1e3 * median_time(
         lambda: reference.run(params, inp, faults, scenario.seed), repeat)
     figures["monitor_chirp_ms"] = 1e3 * median_time(
-        lambda: monitor.run(params, inp, HEALTHY), max(repeat, 20))
+        lambda: monitor.run(params, inp, healthy), max(repeat, 20))
     numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
 
     trace = reference.simulate(scenario, params)

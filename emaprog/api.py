@@ -8,7 +8,7 @@ from typing import Literal, NamedTuple
 from . import __version__
 from . import parameters as parameter_sets
 from .errors import InputError
-from .faults import flatten, nested
+from .faults import flatten, nested, worst_phase
 from .identification import check_sampling, identify_trace
 from .identification import result as verdicts
 from .models import monitor, reference
@@ -115,7 +115,7 @@ def identify(trace_path: str | Path, scenario_path: str | Path | None = None,
         "truth": nested(truth) if truth is not None else None,
         "error": nested(error) if error is not None else None,
         "health": verdicts.health(result.estimate, settings.estimate, params),
-        "short_circuit_phase": verdicts.faulty_phase(result.estimate),
+        "short_circuit_phase": worst_phase(result.estimate),
         "fitness": result.fitness,
         "ga": {"estimate": nested(result.ga_estimate), "fitness": result.ga_fitness,
                "generations": result.generations, "stopped_by": result.stopped_by,

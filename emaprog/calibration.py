@@ -22,8 +22,9 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from . import signals
-from .faults import HEALTHY
+from .faults import HEALTHY, ZETA_COLUMN, MonitorFaults, monitor_form, values_of
 from .kernels.monitor import evaluate_population
+from .kernels.structs import ErrorTarget, MonitorOptions, unit_row
 from .identification.objective import FILTER_SECONDS, STARTUP_SECONDS, low_pass
 from .models import monitor, reference
 from .models.common import Inputs
@@ -32,14 +33,17 @@ from .parameters import Parameters
 from .scenario import ChirpCommand, NoLoad
 
 ZETA_GRID = np.linspace(0.1, 0.8, 8)
+#: The paper's Fig. 10 levels, one fault at a time (physical form: eccentricity as zeta).
 SIGNATURE_FAULTS = {
     "friction": HEALTHY._replace(friction=1.8),
     "backlash": HEALTHY._replace(backlash=4e-4),
     "short_circuit_a": HEALTHY._replace(short_a=0.2),
     "short_circuit_b": HEALTHY._replace(short_b=0.2),
     "short_circuit_c": HEALTHY._replace(short_c=0.2),
-    "eccentricity": HEALTHY._replace(ecc_magnitude=0.2),
+    "eccentricity": HEALTHY._replace(eccentricity_zeta=0.2),
 }
+#: The healthy Monitor (Z = 0).
+MONITOR_HEALTHY = MonitorFaults(*HEALTHY)
 
 
 def calibration_inputs(params: Parameters) -> Inputs:
@@ -57,37 +61,33 @@ class Fit:
     def __init__(self, params: Parameters, inp: Inputs, reference_current: np.ndarray):
         self.params, self.inp = params, inp
         rate = params.spec.controller.rate
-        self.width = max(1, round(FILTER_SECONDS * rate))
-        self.target = low_pass(reference_current, self.width)
-        self.sample_weight = np.ones_like(self.target)
-        self.sample_weight[: round(STARTUP_SECONDS * rate)] = 0.0
+        width = max(1, round(FILTER_SECONDS * rate))
+        current = low_pass(reference_current, width)
+        sample_weight = np.ones_like(current)
+        sample_weight[: round(STARTUP_SECONDS * rate)] = 0.0
+        zeros = np.zeros_like(current)
+        self.target = ErrorTarget(current, zeros, zeros, np.array([1.0, 0.0, 0.0]), width,
+                                  sample_weight)
 
-    def __call__(self, rows: np.ndarray, flags) -> np.ndarray:
-        p, inp = self.params, self.inp
+    def __call__(self, rows: np.ndarray, opts: MonitorOptions) -> np.ndarray:
+        """Error of each (m, 7) Monitor fault row under ``opts``."""
+        p = self.params
         out = np.empty(rows.shape[0])
-        zeros = np.zeros_like(self.target)
-        evaluate_population(np.ascontiguousarray(rows), inp.command, inp.load_torque,
-                            inp.load_stiffness, p.electrical, p.mechanical, p.controller,
-                            p.sensors, *flags, DEFAULT.monitor_substeps, self.target, zeros, zeros,
-                            np.array([1.0, 0.0, 0.0]), self.width, self.sample_weight, out)
+        evaluate_population(np.ascontiguousarray(rows), unit_row(p.plant)[None], self.inp.drive(),
+                            p.plant, opts, self.target, out)
         return out
-
-
-def with_loss(flags: tuple, loss: float) -> tuple:
-    """Monitor kernel flags with another commutation loss [s/rad]."""
-    return flags[:3] + (loss,) + flags[4:]
 
 
 def fit_commutation_loss(params: Parameters, inp: Inputs) -> float:
     ref, _ = reference.run(params, inp, HEALTHY, with_noise=False)
     fit = Fit(params, inp, ref["current"])
-    flags = monitor.model_flags(params)
+    opts = monitor.options(params, DEFAULT)
     friction = np.linspace(0.7, 1.5, 81)
-    rows = np.tile(np.asarray(HEALTHY, float), (friction.size, 1))
+    rows = np.tile(np.asarray(MONITOR_HEALTHY, float), (friction.size, 1))
     rows[:, 0] = friction
 
     def friction_bias(loss: float) -> float:
-        return float(friction[np.argmin(fit(rows, with_loss(flags, loss)))] - 1.0)
+        return float(friction[np.argmin(fit(rows, opts._replace(commutation_loss=loss)))] - 1.0)
 
     lo, hi = 0.0, 4e-4
     for _ in range(14):
@@ -99,22 +99,23 @@ def fit_commutation_loss(params: Parameters, inp: Inputs) -> float:
     return 0.5 * (lo + hi)
 
 
-def fit_eccentricity(params: Parameters, inp: Inputs, flags) -> tuple[float, float, list[float]]:
+def fit_eccentricity(params: Parameters, inp: Inputs,
+                     opts: MonitorOptions) -> tuple[float, float, list[float]]:
     """(c, r^2, optimal Z per zeta of :data:`ZETA_GRID`)."""
     optimal = []
     for zeta in ZETA_GRID:
-        ref, _ = reference.run(params, inp, HEALTHY._replace(ecc_magnitude=float(zeta)),
+        ref, _ = reference.run(params, inp, HEALTHY._replace(eccentricity_zeta=float(zeta)),
                                with_noise=False)
         fit = Fit(params, inp, ref["current"])
 
         def error(z: float) -> float:
-            row = np.asarray(HEALTHY._replace(ecc_magnitude=z), float)[None]
-            return float(fit(row, flags)[0])
+            row = np.asarray(MONITOR_HEALTHY._replace(eccentricity_z=z), float)[None]
+            return float(fit(row, opts)[0])
 
         scan = np.linspace(0.0, zeta, 21)
-        rows = np.tile(np.asarray(HEALTHY, float), (scan.size, 1))
-        rows[:, 5] = scan
-        start = scan[np.argmin(fit(rows, flags))]
+        rows = np.tile(np.asarray(MONITOR_HEALTHY, float), (scan.size, 1))
+        rows[:, ZETA_COLUMN] = scan
+        start = scan[np.argmin(fit(rows, opts))]
         step = scan[1] - scan[0]
         best = minimize_scalar(error, bounds=(max(start - step, 0.0), start + step), method="bounded",
                                options={"xatol": 1e-4})
@@ -126,16 +127,16 @@ def fit_eccentricity(params: Parameters, inp: Inputs, flags) -> tuple[float, flo
     return c, r_squared, optimal
 
 
-def signature_errors(params: Parameters, inp: Inputs, flags, gain: float) -> dict[str, float]:
+def signature_errors(params: Parameters, inp: Inputs, opts: MonitorOptions,
+                     gain: float) -> dict[str, float]:
     width = max(1, round(FILTER_SECONDS * params.spec.controller.rate))
     skip = round(STARTUP_SECONDS * params.spec.controller.rate)
     ref0, _ = reference.run(params, inp, HEALTHY, with_noise=False)
-    mon0 = monitor.run(params, inp, HEALTHY, flags=flags)
+    mon0 = monitor.run(params, inp, MONITOR_HEALTHY, opts=opts)
     out = {}
     for name, faults in SIGNATURE_FAULTS.items():
         ref1, _ = reference.run(params, inp, faults, with_noise=False)
-        mon1 = monitor.run(params, inp, faults._replace(ecc_magnitude=gain * faults.ecc_magnitude),
-                           flags=flags)
+        mon1 = monitor.run(params, inp, monitor_form(values_of(faults), gain), opts=opts)
         d_ref = low_pass(ref1["current"] - ref0["current"], width)[skip:]
         d_mon = low_pass(mon1["current"] - mon0["current"], width)[skip:]
         out[name] = float(np.linalg.norm(d_mon - d_ref) / np.linalg.norm(d_ref))
@@ -146,18 +147,17 @@ def calibrate(params: Parameters) -> dict:
     """Run the three steps; returns the calibration.json content."""
     inp = calibration_inputs(params)
     loss = fit_commutation_loss(params, inp)
-    flags = with_loss(monitor.model_flags(params), loss)
-    scale = flags[2]
-    c, r_squared, optimal = fit_eccentricity(params, inp, flags)
+    opts = monitor.options(params, DEFAULT)._replace(commutation_loss=loss)
+    c, r_squared, optimal = fit_eccentricity(params, inp, opts)
     return {
         "parameters": params.source_file,
-        "torque_gain_scale": scale,
+        "torque_gain_scale": opts.torque_gain_scale,
         "commutation_loss": loss,
         "eccentricity_gain": c,
         "r_squared": r_squared,
         "zeta": ZETA_GRID.tolist(),
         "optimal_z": optimal,
-        "signature_error": signature_errors(params, inp, flags, c),
+        "signature_error": signature_errors(params, inp, opts, c),
         "short_circuit_model": params.spec.monitor.short_circuit_model,
         "eccentricity_model": params.spec.monitor.eccentricity_model,
     }

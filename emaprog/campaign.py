@@ -42,7 +42,7 @@ import pyarrow.parquet as pq
 
 from . import parameters as parameter_sets
 from .errors import InputError
-from .faults import QUANTITIES, flatten
+from .faults import QUANTITIES, flatten, worst_phase
 from .identification import identify_trace
 from .identification import result as verdicts
 from .models import reference
@@ -164,7 +164,7 @@ def run_case(spec: CaseSpec) -> dict:
         row[f"health_{fault}"] = health.get(fault, "not estimated")
         row[f"true_health_{fault}"] = true_health[fault]
     row.update({
-        "true_short_circuit_phase": verdicts.faulty_phase(truth) or "none",
+        "true_short_circuit_phase": worst_phase(truth) or "none",
         "est_short_circuit_phase": _detected_phase(result.estimate, health),
         "fitness": float(result.fitness),
         "evaluations": int(result.evaluations),
@@ -179,7 +179,7 @@ def _detected_phase(estimate: dict[str, float], health: dict[str, str]) -> str:
     """The phase named faulty: the worst one, only when the short circuit is not nominal."""
     if health.get("short_circuit", "nominal") == "nominal":
         return "none"
-    return verdicts.faulty_phase(estimate) or "none"
+    return worst_phase(estimate) or "none"
 
 
 class Failure(NamedTuple):

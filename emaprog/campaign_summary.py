@@ -94,7 +94,7 @@ def summarize(frame: pd.DataFrame, params: Parameters) -> dict:
     * isolation: true faulty phase (largest shorted fraction at or above the
       incipient threshold, else "none") against the phase the verdict named.
     """
-    errors = {q: _statistics(error_values(frame, q, params), ACCURACY[q], QUANTITIES[q][0])
+    errors = {q: _statistics(error_values(frame, q, params), ACCURACY[q], QUANTITIES[q].unit)
               for q in QUANTITIES}
     detection, absent_alarms = {}, {}
     for fault in FAULTS:

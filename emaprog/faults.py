@@ -1,49 +1,172 @@
-"""The fault catalogue: names, units, healthy values, and their kernel form."""
+"""THE fault catalogue: every fault's name, quantities, units, ranges, labels and severity.
+
+Every other module iterates over :data:`CATALOGUE` (or :data:`FAULTS`,
+:data:`QUANTITIES`) instead of naming faults: the scenario and campaign schemas,
+the identification genes, the case table columns, the summaries, the history
+table and the report tables. A fault has one of three *layouts*, which decide
+the shape of its YAML value, of its campaign distribution and of its growth law:
+
+* ``scalar`` -- one number (``friction: 1.8``);
+* ``per_phase`` -- one fraction per motor phase (``short_circuit: {a: 0.2}``),
+  campaign distribution ``{phase: any|a|b|c, fraction: {uniform: [lo, hi]}}``;
+* ``polar`` -- a magnitude and an angle (``eccentricity: {zeta: 0.2, phase: 0}``),
+  campaign distribution ``{zeta: {uniform: ..}, phase: {uniform: ..}}``.
+
+Eccentricity has two magnitudes: the air-gap reduction zeta [-] (the physical
+fault, the Reference Model's and every user-facing value) and the Monitor's
+shape-function amplitude Z = c zeta. They are separate fields of separate
+kernel structs (:class:`FaultParams`, :class:`MonitorFaults`) and converted in
+one place, :func:`monitor_form`.
+"""
 
 from __future__ import annotations
 
-from .kernels.structs import FaultParams
-from .scenario import Faults
+import math
+from typing import Literal, NamedTuple
 
-__all__ = ["FaultParams", "HEALTHY", "QUANTITIES", "flatten", "nested", "to_params"]
+from .kernels.structs import FaultParams, MonitorFaults
 
+__all__ = ["CATALOGUE", "FAULTS", "FAULT_NAMES", "HEALTHY", "QUANTITIES", "Fault",
+           "FaultParams", "MonitorFaults", "Quantity", "flatten", "healthy_values",
+           "monitor_form", "nested", "reference_form", "severity", "values_of", "worst_phase"]
 
-#: Every scalar fault quantity: (unit, healthy value). Names as in SPEC 6 columns.
-QUANTITIES: dict[str, tuple[str, float]] = {
-    "friction": ("-", 1.0),
-    "backlash": ("rad", 0.0),
-    "short_circuit_a": ("-", 0.0),
-    "short_circuit_b": ("-", 0.0),
-    "short_circuit_c": ("-", 0.0),
-    "eccentricity_zeta": ("-", 0.0),
-    "eccentricity_phase": ("rad", 0.0),
-}
-
-HEALTHY = FaultParams(1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+TWO_PI = 2.0 * math.pi
+Layout = Literal["scalar", "per_phase", "polar"]
 
 
-def to_params(faults: Faults, eccentricity_gain: float = 1.0) -> FaultParams:
-    """Kernel form of a scenario's faults; ``eccentricity_gain`` maps zeta to Z."""
-    sc, ecc = faults.short_circuit, faults.eccentricity
-    return FaultParams(float(faults.friction), float(faults.backlash), float(sc.a), float(sc.b),
-                       float(sc.c), float(eccentricity_gain * ecc.zeta), float(ecc.phase))
+class Quantity(NamedTuple):
+    """One scalar fault quantity (a column stem of the case table, SPEC 6)."""
+
+    name: str  # e.g. "short_circuit_a"
+    key: str | None  # key inside the fault's YAML mapping ("a", "zeta"); None: the fault is a number
+    unit: str
+    healthy: float
+    lower: float  # allowed true values [lower, upper] (upper excluded when upper_open)
+    upper: float
+    upper_open: bool
+    label: str  # for tables and figures
+    measure: Literal["absolute", "relative"]  # how its identification error is measured
+    tolerance: float | None  # SPEC 10 bar on |error| in that measure; None: no bar
+    circular: bool  # an angle: wraps around, errors wrapped into (-pi, pi]
 
 
-def flatten(faults: Faults) -> dict[str, float]:
-    """Scalar quantities of a Faults model, keyed as :data:`QUANTITIES`."""
-    sc, ecc = faults.short_circuit, faults.eccentricity
-    return {
-        "friction": faults.friction, "backlash": faults.backlash,
-        "short_circuit_a": sc.a, "short_circuit_b": sc.b, "short_circuit_c": sc.c,
-        "eccentricity_zeta": ecc.zeta, "eccentricity_phase": ecc.phase,
-    }
+class Fault(NamedTuple):
+    name: str
+    label: str
+    layout: Layout
+    quantities: tuple[Quantity, ...]
+    severity: str  # what the health thresholds apply to (the parameter set's health:)
+    default_bounds: tuple[float, float]  # identification search range of its magnitudes
+    bound_limits: tuple[float, float]  # what a search bound itself may be
+
+    @property
+    def magnitudes(self) -> tuple[Quantity, ...]:
+        """The quantities whose deviation from healthy is the fault's severity (not angles)."""
+        return tuple(q for q in self.quantities if not q.circular)
+
+
+def _phase(x: str) -> Quantity:
+    return Quantity(f"short_circuit_{x}", x, "-", 0.0, 0.0, 1.0, True,
+                    f"short circuit {x.upper()}", "absolute", 0.03, False)
+
+
+CATALOGUE: tuple[Fault, ...] = (
+    Fault("friction", "dry-friction increase", "scalar",
+          (Quantity("friction", None, "-", 1.0, 0.1, 10.0, False, "friction k_f", "relative",
+                    0.05, False),),
+          "|k_f - 1|, the multiplier of nominal dry friction minus 1 [-]", (0.5, 4.0), (0.1, 10.0)),
+    Fault("backlash", "backlash", "scalar",
+          (Quantity("backlash", None, "rad", 0.0, 0.0, 0.01, False, "backlash", "absolute", 5e-5,
+                    False),),
+          "total play on the output shaft [rad]", (0.0, 1.5e-3), (0.0, 0.01)),
+    Fault("short_circuit", "phase short circuit", "per_phase",
+          tuple(_phase(x) for x in "abc"),
+          "shorted fraction of the worst phase [-]", (0.0, 0.5), (0.0, 0.95)),
+    Fault("eccentricity", "rotor static eccentricity", "polar",
+          (Quantity("eccentricity_zeta", "zeta", "-", 0.0, 0.0, 1.0, True, "eccentricity zeta",
+                    "absolute", 0.05, False),
+           Quantity("eccentricity_phase", "phase", "rad", 0.0, 0.0, TWO_PI, False,
+                    "eccentricity phase", "absolute", None, True)),
+          "air-gap reduction zeta [-]", (0.0, 0.8), (0.0, 0.95)),
+)
+
+FAULTS: dict[str, Fault] = {f.name: f for f in CATALOGUE}
+FAULT_NAMES: tuple[str, ...] = tuple(FAULTS)
+#: Every scalar quantity, in kernel (FaultParams) order.
+QUANTITIES: dict[str, Quantity] = {q.name: q for f in CATALOGUE for q in f.quantities}
+PHASES = "abc"
+
+HEALTHY = FaultParams(*(q.healthy for q in QUANTITIES.values()))
+
+
+def healthy_values() -> dict[str, float]:
+    """Every quantity at its healthy value."""
+    return {name: q.healthy for name, q in QUANTITIES.items()}
+
+
+def flatten(faults) -> dict[str, float]:
+    """Scalar quantities of a scenario's ``faults`` model, keyed as :data:`QUANTITIES`."""
+    out = {}
+    for fault in CATALOGUE:
+        value = getattr(faults, fault.name)
+        for q in fault.quantities:
+            out[q.name] = float(value if q.key is None else getattr(value, q.key))
+    return out
 
 
 def nested(values: dict[str, float]) -> dict:
-    """SPEC 5 report shape from flat quantities."""
-    return {
-        "friction": values["friction"],
-        "backlash": values["backlash"],
-        "short_circuit": {x: values[f"short_circuit_{x}"] for x in "abc"},
-        "eccentricity": {"zeta": values["eccentricity_zeta"], "phase": values["eccentricity_phase"]},
-    }
+    """SPEC 5 report shape (``{"short_circuit": {"a": ..}, ...}``) from flat quantities."""
+    out = {}
+    for fault in CATALOGUE:
+        if fault.layout == "scalar":
+            out[fault.name] = values[fault.quantities[0].name]
+        else:
+            out[fault.name] = {q.key: values[q.name] for q in fault.quantities}
+    return out
+
+
+def flat_from_nested(estimate: dict) -> dict[str, float]:
+    """Inverse of :func:`nested` (a report's ``estimate``); KeyError/TypeError when incomplete."""
+    out = {}
+    for fault in CATALOGUE:
+        value = estimate[fault.name]
+        for q in fault.quantities:
+            out[q.name] = float(value if q.key is None else value[q.key])
+    return out
+
+
+def reference_form(values: dict[str, float]) -> FaultParams:
+    """Kernel form for the Reference Model (eccentricity as zeta)."""
+    return FaultParams(*(float(values[name]) for name in QUANTITIES))
+
+
+def values_of(faults: FaultParams) -> dict[str, float]:
+    """The quantities of a kernel-form :class:`FaultParams`, keyed as :data:`QUANTITIES`."""
+    return dict(zip(QUANTITIES, (float(v) for v in faults)))
+
+
+def monitor_form(values: dict[str, float], eccentricity_gain: float) -> MonitorFaults:
+    """Kernel form for the Monitor Model: Z = ``eccentricity_gain`` zeta (the one conversion)."""
+    row = [float(values[name]) for name in QUANTITIES]
+    row[ZETA_COLUMN] = eccentricity_gain * row[ZETA_COLUMN]
+    return MonitorFaults(*row)
+
+
+#: Column of zeta (Z in the Monitor's rows) in kernel order.
+ZETA_COLUMN = list(QUANTITIES).index("eccentricity_zeta")
+
+
+def severity(fault: str, values: dict[str, float]) -> float:
+    """The scalar a fault's health thresholds apply to (:attr:`Fault.severity` says which).
+
+    The largest deviation from healthy of the fault's magnitudes: ``|k_f - 1|``
+    for friction, the play, the worst phase's shorted fraction, zeta.
+    """
+    return max(abs(values[q.name] - q.healthy) for q in FAULTS[fault].magnitudes)
+
+
+def worst_phase(values: dict[str, float]) -> str | None:
+    """The phase with the largest shorted fraction, or None if all are zero."""
+    fractions = {q.key: values[q.name] for q in FAULTS["short_circuit"].quantities}
+    phase = max(fractions, key=fractions.get)
+    return phase if fractions[phase] > 0 else None

@@ -28,7 +28,7 @@ import pyarrow.parquet as pq
 
 from . import campaign as campaigns
 from .errors import InputError
-from .faults import QUANTITIES
+from .faults import QUANTITIES, healthy_values
 from .identification.result import severity
 from .parameters import Parameters
 from .scenario import Faults, History, Scenario
@@ -88,7 +88,7 @@ def read_table(path: str | Path) -> HistoryTable:
         if not np.all(np.isfinite(columns[name])):
             raise InputError(path, "holds NaN or infinite values", name)
     _check_usage(columns["usage"], path, "usage")
-    values = [{**{q: healthy for q, (_, healthy) in QUANTITIES.items()},
+    values = [{**healthy_values(),
                **{c: float(columns[c][k]) for c in TABLE_COLUMNS}}
               for k in range(columns["usage"].size)]
     return HistoryTable(actuators[0], str(path), columns["usage"], _severities(values), None, None)

@@ -15,6 +15,9 @@ from typing import Annotated, Literal, NamedTuple
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from .errors import InputError, from_validation_error
+from .kernels.structs import (
+    ControllerParams, ElectricalParams, MechanicalParams, Plant, SensorParams,
+)
 from .yamlfile import load_mapping
 
 Pos = Annotated[float, Field(strict=True, gt=0)]
@@ -140,51 +143,6 @@ class ParameterFile(_Section):
 
 
 # ---------------------------------------------------------------- kernel structs
-class ElectricalParams(NamedTuple):
-    dc_bus_voltage: float  # [V]
-    pole_pairs: float  # [-]
-    phase_resistance: float  # [ohm]
-    phase_inductance: float  # [H]
-    back_emf_constant: float  # [V s/rad] per phase
-    current_limit: float  # [A]
-    hysteresis_band: float  # [A]
-
-
-class MechanicalParams(NamedTuple):
-    motor_inertia: float
-    motor_viscous: float
-    static_friction: float
-    dynamic_friction: float
-    gear_ratio: float
-    surface_inertia: float
-    surface_damping: float
-    transmission_stiffness: float
-    transmission_damping: float
-    end_stop: float
-    end_stop_stiffness: float
-    end_stop_damping: float
-
-
-class ControllerParams(NamedTuple):
-    period: float  # [s] derived: 1 / rate
-    position_gain: float
-    position_integral: float
-    speed_gain: float
-    speed_integral: float
-    speed_limit: float
-    current_limit: float  # [A] copied from electrical: the loop saturates I_ref
-
-
-class SensorParams(NamedTuple):
-    position_offset: float
-    position_lsb: float  # [rad] derived: 2 range / 2^bits
-    speed_lsb: float  # [rad/s] derived
-    current_lsb: float  # [A] derived
-    position_range: float
-    speed_range: float
-    current_range: float
-
-
 class Parameters(NamedTuple):
     """A built parameter set: the validated file plus the kernel structs."""
 
@@ -198,6 +156,11 @@ class Parameters(NamedTuple):
     def values(self) -> dict:
         """Plain values actually used (for provenance)."""
         return self.spec.model_dump(mode="json")
+
+    @property
+    def plant(self) -> Plant:
+        """The kernels' view of the unit: electrical, mechanical, controller, sensors."""
+        return Plant(self.electrical, self.mechanical, self.controller, self.sensors)
 
 
 def derive(spec: ParameterFile, source_file: str) -> Parameters:

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from emaprog import parameters
-from emaprog.faults import HEALTHY, to_params
+from emaprog.faults import HEALTHY, MonitorFaults, flatten, monitor_form, reference_form
 from emaprog.kernels.monitor import moving_average
 from emaprog.models import monitor, reference
 from emaprog.models.common import inputs
@@ -34,7 +34,7 @@ def reference_run(name: str, faults=None, noise: bool = False):
     """Reference columns and energy ledger of a shipped scenario (cached per session)."""
     sc = scenario(name)
     p = parameters.load("default")
-    f = to_params(sc.faults) if faults is None else faults
+    f = reference_form(flatten(sc.faults)) if faults is None else faults
     return reference.run(p, inputs(sc, p), f, sc.seed, with_noise=noise)
 
 
@@ -42,7 +42,8 @@ def reference_run(name: str, faults=None, noise: bool = False):
 def monitor_run(name: str, faults=None):
     sc = scenario(name)
     p = parameters.load("default")
-    f = to_params(sc.faults, p.spec.monitor.eccentricity_gain) if faults is None else faults
+    f = (monitor_form(flatten(sc.faults), p.spec.monitor.eccentricity_gain) if faults is None
+         else faults)
     return monitor.run(p, inputs(sc, p), f)
 
 
@@ -58,5 +59,8 @@ def nrmse(model: np.ndarray, truth: np.ndarray, skip: int = 100) -> float:
     return float(np.sqrt(np.mean((m - t) ** 2)) / np.sqrt(np.mean(t ** 2)))
 
 
-__all__ = ["CONFIGS", "HEALTHY", "ROOT", "low_pass", "monitor_run", "nrmse", "reference_run",
+#: The healthy Monitor (Z = 0).
+MONITOR_HEALTHY = MonitorFaults(*HEALTHY)
+
+__all__ = ["CONFIGS", "HEALTHY", "MONITOR_HEALTHY", "ROOT", "low_pass", "monitor_run", "nrmse", "reference_run",
            "scenario"]

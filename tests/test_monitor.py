@@ -6,14 +6,14 @@ import numpy as np
 import pytest
 
 from emaprog.calibration import SIGNATURE_FAULTS
-from emaprog.faults import HEALTHY
+from emaprog.faults import HEALTHY, monitor_form, values_of
 from emaprog.identification.objective import Objective
 from emaprog.kernels.monitor import ECCENTRICITY_PAIR, SHORT_CIRCUIT_AVERAGED, short_circuit_factors
 from emaprog.models.common import inputs
 from emaprog.scenario import IdentifySettings
 from emaprog.storage import Trace
 
-from .conftest import low_pass, monitor_run, nrmse, reference_run, scenario
+from .conftest import MONITOR_HEALTHY, low_pass, monitor_run, nrmse, reference_run, scenario
 
 FIG10 = SIGNATURE_FAULTS  # kernel form at the paper's Fig. 10 levels (RM: zeta; MM: Z = c zeta)
 
@@ -23,7 +23,7 @@ def test_healthy_monitor_matches_reference():
 
     The current is held to 1 %: with the commutation transients modelled it is 0.4 %."""
     ref, _ = reference_run("chirp-nominal", HEALTHY)
-    mon = monitor_run("chirp-nominal", HEALTHY)
+    mon = monitor_run("chirp-nominal", MONITOR_HEALTHY)
     assert nrmse(low_pass(mon["current"]), low_pass(ref["current"])) < 0.01
     assert nrmse(mon["position"], ref["position"]) < 0.02
 
@@ -42,8 +42,8 @@ def test_fault_signature_error(params, fault):
     c = params.spec.monitor.eccentricity_gain
     ref0, _ = reference_run("chirp-nominal", HEALTHY)
     ref1, _ = reference_run("chirp-nominal", f)
-    mon0 = monitor_run("chirp-nominal", HEALTHY)
-    mon1 = monitor_run("chirp-nominal", f._replace(ecc_magnitude=c * f.ecc_magnitude))
+    mon0 = monitor_run("chirp-nominal", MONITOR_HEALTHY)
+    mon1 = monitor_run("chirp-nominal", monitor_form(values_of(f), c))
     d_ref = low_pass(ref1["current"]) - low_pass(ref0["current"])
     d_mon = low_pass(mon1["current"]) - low_pass(mon0["current"])
     e_sig = np.linalg.norm((d_mon - d_ref)[100:]) / np.linalg.norm(d_ref[100:])
@@ -54,13 +54,13 @@ def test_fault_signature_error(params, fault):
 def short_circuit_signature_error(params, commutation: str) -> float:
     from emaprog.models import monitor
 
-    flags = monitor.model_flags(params)[:4] + (commutation == "transient",)
+    opts = monitor.options(params)._replace(commutation=commutation == "transient")
     f = FIG10["short_circuit_a"]
     ref0, _ = reference_run("chirp-nominal", HEALTHY)
     ref1, _ = reference_run("chirp-nominal", f)
     inp = inputs(scenario("chirp-nominal"), params)
-    mon0 = monitor.run(params, inp, HEALTHY, flags=flags)
-    mon1 = monitor.run(params, inp, f, flags=flags)
+    mon0 = monitor.run(params, inp, MONITOR_HEALTHY, opts=opts)
+    mon1 = monitor.run(params, inp, monitor_form(values_of(f), 1.0), opts=opts)
     d_ref = low_pass(ref1["current"]) - low_pass(ref0["current"])
     d_mon = low_pass(mon1["current"]) - low_pass(mon0["current"])
     return float(np.linalg.norm((d_mon - d_ref)[100:]) / np.linalg.norm(d_ref[100:]))

@@ -63,11 +63,11 @@ def test_backlash_dead_band_transmits_no_torque(params):
     mech = params.mechanical
     n, play = mech.gear_ratio, 4e-4
     for twist in np.linspace(-0.49 * play, 0.49 * play, 11):
-        assert link_torque(twist * n, 50.0, 0.0, 0.0, play, mech) == 0.0
+        assert link_torque(twist * n, 50.0, 0.0, 0.0, play, mech) == (0.0, 0.0)
     # in contact, the stiffness acts on the twist beyond half the play
-    assert link_torque(0.7 * play * n, 0.0, 0.0, 0.0, play, mech) == pytest.approx(
-        mech.transmission_stiffness * 0.2 * play)
-    assert link_torque(-0.7 * play * n, 0.0, 0.0, 0.0, play, mech) < 0.0
+    total, spring = link_torque(0.7 * play * n, 0.0, 0.0, 0.0, play, mech)
+    assert total == spring == pytest.approx(mech.transmission_stiffness * 0.2 * play)
+    assert link_torque(-0.7 * play * n, 0.0, 0.0, 0.0, play, mech)[0] < 0.0
 
 
 def test_step_settles_without_limit_cycle(params):
@@ -85,12 +85,13 @@ def test_same_seed_same_trace_and_noise_follows_the_seed(params):
     a, _ = reference_run("friction", noise=True)
     from emaprog.models import reference
     from emaprog.models.common import inputs
-    from emaprog.faults import to_params
+    from emaprog.faults import flatten, reference_form
     from .conftest import scenario
 
     sc = scenario("friction")
-    again, _ = reference.run(params, inputs(sc, params), to_params(sc.faults), sc.seed)
-    other, _ = reference.run(params, inputs(sc, params), to_params(sc.faults), sc.seed + 1)
+    again, _ = reference.run(params, inputs(sc, params), reference_form(flatten(sc.faults)), sc.seed)
+    other, _ = reference.run(params, inputs(sc, params), reference_form(flatten(sc.faults)),
+                             sc.seed + 1)
     assert all(np.array_equal(a[k], again[k]) for k in a)
     assert not np.array_equal(a["current"], other["current"])
 
@@ -99,7 +100,7 @@ def test_healthy_fault_values_give_the_nominal_actuator():
     """Faults -> 0 is the healthy model: vanishing faults change nothing measurable."""
     nominal, _ = reference_run("chirp-nominal", HEALTHY)
     tiny, _ = reference_run("chirp-nominal", HEALTHY._replace(backlash=1e-12, short_a=1e-12,
-                                                              ecc_magnitude=1e-12))
+                                                              eccentricity_zeta=1e-12))
     assert nrmse(low_pass(tiny["current"]), low_pass(nominal["current"])) < 1e-3
     assert np.max(np.abs(tiny["position"] - nominal["position"])) < 1e-6
 
@@ -147,7 +148,8 @@ def test_short_circuit_raises_ripple_where_the_faulty_phase_conducts(params):
 
 def test_eccentricity_changes_current_but_barely_position():
     nominal, _ = reference_run("chirp-nominal", HEALTHY)
-    faulty, _ = reference_run("chirp-nominal", HEALTHY._replace(ecc_magnitude=0.4, ecc_phase=1.0))
+    faulty, _ = reference_run("chirp-nominal", HEALTHY._replace(eccentricity_zeta=0.4,
+                                                                  eccentricity_phase=1.0))
     assert nrmse(low_pass(faulty["current"]), low_pass(nominal["current"])) > 0.01
     assert nrmse(faulty["position"], nominal["position"]) < 0.005
 
@@ -156,13 +158,13 @@ def test_chunked_run_behind_a_progress_bar_is_the_single_run(params, monkeypatch
     """A long run is computed in chunks for its progress bar: same trace, same energy ledger."""
     from emaprog.models import reference
     from emaprog.models.common import inputs
-    from emaprog.faults import to_params
+    from emaprog.faults import flatten, reference_form
     from .conftest import scenario
 
     sc = scenario("fig10-multiple-faults")
     whole, ledger = reference_run("fig10-multiple-faults", noise=True)
     monkeypatch.setattr(reference, "PROGRESS_STEPS", 1)  # every run counts as long
-    chunked, chunked_ledger = reference.run(params, inputs(sc, params), to_params(sc.faults),
+    chunked, chunked_ledger = reference.run(params, inputs(sc, params), reference_form(flatten(sc.faults)),
                                             sc.seed, show_progress=True)
     assert all(np.array_equal(whole[k], chunked[k]) for k in whole)
     assert chunked_ledger == pytest.approx(ledger, rel=1e-12, abs=1e-15)

@@ -25,8 +25,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..faults import HEALTHY, QUANTITIES
+from ..faults import (
+    CATALOGUE, HEALTHY, QUANTITIES, ZETA_COLUMN, MonitorFaults, healthy_values, monitor_form,
+)
 from ..kernels.monitor import evaluate_population, moving_average
+from ..kernels.structs import ErrorTarget, unit_row
 from ..models import monitor, reference
 from ..models.common import Inputs
 from ..numerics import DEFAULT, Numerics
@@ -34,13 +37,6 @@ from ..parameters import Parameters
 from ..scenario import IdentifySettings
 from ..storage import Trace
 
-#: Fault names of the ``estimate:`` list and the quantities each one owns.
-FAULT_QUANTITIES = {
-    "friction": ("friction",),
-    "backlash": ("backlash",),
-    "short_circuit": ("short_circuit_a", "short_circuit_b", "short_circuit_c"),
-    "eccentricity": ("eccentricity_zeta", "eccentricity_phase"),
-}
 FILTER_SECONDS = 1e-3  # [s] moving-average window of the error function
 STARTUP_SECONDS = 0.01  # [s] left out of the error: initial transient of the loops
 TWO_PI = 2.0 * math.pi
@@ -56,17 +52,20 @@ class Gene(NamedTuple):
 
 
 def genes_of(settings: IdentifySettings) -> list[Gene]:
-    """The genes to search, in :data:`~emaprog.faults.QUANTITIES` order."""
+    """The genes to search, in :data:`~emaprog.faults.QUANTITIES` order.
+
+    A fault's magnitudes share its ``identify.bounds``; an angle spans the circle.
+    """
     genes = []
-    for fault in ("friction", "backlash", "short_circuit", "eccentricity"):
-        if fault not in settings.estimate:
+    for fault in CATALOGUE:
+        if fault.name not in settings.estimate:
             continue
-        lo, hi = getattr(settings.bounds, fault)
-        for quantity in FAULT_QUANTITIES[fault]:
-            if quantity == "eccentricity_phase":
-                genes.append(Gene(quantity, 0.0, TWO_PI, True))
+        lo, hi = getattr(settings.bounds, fault.name)
+        for q in fault.quantities:
+            if q.circular:
+                genes.append(Gene(q.name, 0.0, TWO_PI, True))
             else:
-                genes.append(Gene(quantity, float(lo), float(hi), False))
+                genes.append(Gene(q.name, float(lo), float(hi), False))
     return genes
 
 
@@ -120,19 +119,21 @@ class Objective:
         self.inputs = inputs
         self.numerics = numerics
         self.genes = genes_of(settings)
-        self.flags = monitor.model_flags(params)
+        self.options = monitor.options(params, numerics)
+        self.units = unit_row(params.plant)[None]
         self.eccentricity_gain = params.spec.monitor.eccentricity_gain
         rate = params.spec.controller.rate
         self.filter_width = max(1, round(FILTER_SECONDS * rate))
         n = trace.time.size
-        self.targets = tuple(
+        targets = tuple(
             low_pass(trace[name] - (discrepancy[name] if discrepancy else 0.0), self.filter_width)
             for name in ("current", "position", "speed"))
         self.speed_limit = fit_speed_limit(settings, params)
-        self.sample_weight = sample_weights(low_pass(trace["speed"], self.filter_width),
-                                            self.speed_limit, min(round(STARTUP_SECONDS * rate), n // 10))
+        sample_weight = sample_weights(low_pass(trace["speed"], self.filter_width),
+                                       self.speed_limit, min(round(STARTUP_SECONDS * rate), n // 10))
         w = settings.signals
-        self.weights = np.array([w.current, w.position, w.speed], dtype=np.float64)
+        self.target = ErrorTarget(*targets, np.array([w.current, w.position, w.speed], dtype=np.float64),
+                                  self.filter_width, sample_weight)
         self.lower = np.array([g.lower for g in self.genes])
         self.span = np.array([g.upper - g.lower for g in self.genes])
         self.circular = np.array([g.circular for g in self.genes])
@@ -144,7 +145,7 @@ class Objective:
 
     def values(self, genes: np.ndarray) -> dict[str, float]:
         """All seven fault quantities of one gene row (healthy where not estimated)."""
-        out = {name: healthy for name, (_, healthy) in QUANTITIES.items()}
+        out = healthy_values()
         for gene, x in zip(self.genes, np.asarray(genes, float)):
             if gene.circular:
                 out[gene.quantity] = float((x % 1.0) * TWO_PI)
@@ -161,7 +162,7 @@ class Objective:
         ])
 
     def kernel_rows(self, genes: np.ndarray) -> np.ndarray:
-        """(m, 7) rows in FaultParams order, zeta mapped to Z = c zeta."""
+        """(m, 7) Monitor fault rows (:class:`~emaprog.faults.MonitorFaults` order, Z = c zeta)."""
         genes = np.atleast_2d(genes)
         rows = np.tile(np.asarray(HEALTHY, float), (genes.shape[0], 1))
         index = {name: k for k, name in enumerate(QUANTITIES)}
@@ -169,33 +170,30 @@ class Objective:
             col = genes[:, j]
             k = index[gene.quantity]
             rows[:, k] = (col % 1.0) * TWO_PI if gene.circular else self.lower[j] + np.clip(col, 0, 1) * self.span[j]
-        rows[:, index["eccentricity_zeta"]] *= self.eccentricity_gain
+        rows[:, ZETA_COLUMN] *= self.eccentricity_gain
         return np.ascontiguousarray(rows)
 
     def __call__(self, genes: np.ndarray) -> np.ndarray:
         rows = self.kernel_rows(genes)
         fitness = np.empty(rows.shape[0])
-        p, inp = self.params, self.inputs
-        evaluate_population(rows, inp.command, inp.load_torque, inp.load_stiffness, p.electrical,
-                            p.mechanical, p.controller, p.sensors, *self.flags,
-                            self.numerics.monitor_substeps, *self.targets, self.weights,
-                            self.filter_width, self.sample_weight, fitness)
+        evaluate_population(rows, self.units, self.inputs.drive(), self.params.plant, self.options,
+                            self.target, fitness)
         self.evaluations += rows.shape[0]
         return fitness
 
     def healthy_genes(self) -> np.ndarray:
-        return self.genes_for({name: healthy for name, (_, healthy) in QUANTITIES.items()})
+        return self.genes_for(healthy_values())
 
     def simulate(self, values: dict[str, float]) -> dict[str, np.ndarray]:
         """Monitor columns for one set of fault values (for figures)."""
-        row = self.kernel_rows(self.genes_for(values))[0] if self.genes else np.asarray(HEALTHY, float)
-        return monitor.run(self.params, self.inputs, HEALTHY._make(row.tolist()), self.numerics,
-                           self.flags)
+        faults = (MonitorFaults(*self.kernel_rows(self.genes_for(values))[0].tolist()) if self.genes
+                  else monitor_form(healthy_values(), self.eccentricity_gain))
+        return monitor.run(self.params, self.inputs, faults, opts=self.options)
 
 
 def nominal_discrepancy(inputs: Inputs, params: Parameters,
                         numerics: Numerics = DEFAULT) -> dict[str, np.ndarray]:
     """Healthy Reference minus healthy Monitor, noise-free, on the same inputs."""
     ref, _ = reference.run(params, inputs, HEALTHY, with_noise=False, numerics=numerics)
-    mon = monitor.run(params, inputs, HEALTHY, numerics)
+    mon = monitor.run(params, inputs, monitor_form(healthy_values(), 1.0), numerics)
     return {name: ref[name] - mon[name] for name in ("current", "position", "speed")}

@@ -41,3 +41,22 @@ def controller_update(command, position, speed, position_int, speed_int, ctrl):
     if raw_current == current_ref or speed_error * raw_current < 0.0:
         speed_int += ctrl.speed_integral * speed_error * ctrl.period
     return current_ref, position_int, speed_int
+
+
+@njit(cache=True)
+def sample_and_control(command, theta_s, omega_m, noise_position, noise_speed, position_int,
+                       speed_int, plant):
+    """One controller period's sampling and control, shared by both models.
+
+    The feedback is sampled at the period's start (position transducer offset,
+    line noise [rad], [rad/s], ADC), then the loops run on it (ZOH output).
+    Returns (measured position [rad], measured speed [rad/s], I_ref [A],
+    position_int, speed_int).
+    """
+    sens = plant.sensors
+    position = quantize(theta_s + sens.position_offset + noise_position, sens.position_lsb,
+                        sens.position_range)
+    speed = quantize(omega_m + noise_speed, sens.speed_lsb, sens.speed_range)
+    current_ref, position_int, speed_int = controller_update(
+        command, position, speed, position_int, speed_int, plant.controller)
+    return position, speed, current_ref, position_int, speed_int

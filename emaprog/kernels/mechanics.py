@@ -11,7 +11,19 @@ angles with the new velocities; stable for the stiff link at the Monitor step.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 from numba import njit
+
+
+class TransmissionTorques(NamedTuple):
+    """The torques one :func:`mechanics_step` applied [N m] (for energy accounting)."""
+
+    link: float  # transmitted at the output by the compliant link (spring + damper)
+    spring: float  # the link's elastic part
+    friction: float  # dry friction at the motor (Borello)
+    hinge: float  # aerodynamic hinge moment on the surface, opposing +deflection
+    end_stop: float  # contact torque of the end stops on the surface
 
 
 @njit(cache=True)
@@ -21,16 +33,19 @@ def link_torque(theta_m, omega_m, theta_s, omega_s, backlash, mech):
     ``twist = theta_m / N - theta_s``. Inside the play (``|twist| <= b/2``) no
     torque is transmitted; in contact, ``K (twist -+ b/2) + C d(twist)/dt``,
     clipped so the contact only pushes (no adhesive pull on separation).
+    Returns (link torque, its spring part ``K (twist -+ b/2)``).
     """
     n = mech.gear_ratio
     twist = theta_m / n - theta_s
     rate = omega_m / n - omega_s
     half = 0.5 * backlash
     if twist > half:
-        return max(mech.transmission_stiffness * (twist - half) + mech.transmission_damping * rate, 0.0)
+        spring = mech.transmission_stiffness * (twist - half)
+        return max(spring + mech.transmission_damping * rate, 0.0), spring
     if twist < -half:
-        return min(mech.transmission_stiffness * (twist + half) + mech.transmission_damping * rate, 0.0)
-    return 0.0
+        spring = mech.transmission_stiffness * (twist + half)
+        return min(spring + mech.transmission_damping * rate, 0.0), spring
+    return 0.0, 0.0
 
 
 @njit(cache=True)
@@ -94,18 +109,18 @@ def mechanics_step(theta_m, omega_m, theta_s, omega_s, motor_torque, load_torque
 
     Returns
     -------
-    theta_m, omega_m, theta_s, omega_s, link, friction
-        New state, the link torque at the output [N m] and the motor friction
-        torque [N m] used in the step (for energy accounting).
+    theta_m, omega_m, theta_s, omega_s, torques
+        New state and the :class:`TransmissionTorques` applied in the step.
     """
-    link = link_torque(theta_m, omega_m, theta_s, omega_s, backlash, mech)
+    link, spring = link_torque(theta_m, omega_m, theta_s, omega_s, backlash, mech)
     active_m = motor_torque - mech.motor_viscous * omega_m - link / mech.gear_ratio
     new_omega_m, friction = borello_velocity(
         omega_m, active_m, friction_scale * mech.static_friction,
         friction_scale * mech.dynamic_friction, mech.motor_inertia, dt,
     )
     hinge = load_torque + load_stiffness * theta_s
-    active_s = link - mech.surface_damping * omega_s - hinge + end_stop_torque(theta_s, omega_s, mech)
+    stop = end_stop_torque(theta_s, omega_s, mech)
+    active_s = link - mech.surface_damping * omega_s - hinge + stop
     new_omega_s = omega_s + active_s / mech.surface_inertia * dt
     return (theta_m + new_omega_m * dt, new_omega_m, theta_s + new_omega_s * dt, new_omega_s,
-            link, friction)
+            TransmissionTorques(link, spring, friction, hinge, stop))

@@ -26,10 +26,19 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .bldc import IDLE_PHASE, NEGATIVE_PHASE, PHASE_OFFSET, POSITIVE_PHASE, TWO_PI, sector, trapezoid
-from .control import clip, controller_update, quantize
+from .bldc import (
+    IDLE_PHASE, NEGATIVE_PHASE, PHASE_OFFSET, POSITIVE_PHASE, TWO_PI, equivalent_current, sector,
+    trapezoid,
+)
+from .control import clip, sample_and_control
 from .mechanics import mechanics_step
-from .structs import FaultParams
+from .structs import (
+    UNIT_COLUMNS, Drive, ElectricalParams, MechanicalParams, MonitorFaults, MonitorOutputs, Plant,
+)
+
+(U_MOTOR_INERTIA, U_SURFACE_INERTIA, U_MOTOR_VISCOUS, U_STATIC_FRICTION, U_DYNAMIC_FRICTION,
+ U_PHASE_RESISTANCE, U_BACK_EMF_CONSTANT, U_PHASE_INDUCTANCE, U_TRANSMISSION_STIFFNESS,
+ U_HINGE_MOMENT) = range(len(UNIT_COLUMNS))
 
 SHORT_CIRCUIT_MODULATED = 0
 SHORT_CIRCUIT_AVERAGED = 1
@@ -176,22 +185,21 @@ def commutation_step(pair, outgoing, current_ref, s6, theta_e, omega, k_phase, r
     torque = (k_phase[p] * trapezoid(theta_e + PHASE_OFFSET[p]) * i_p
               + k_phase[q] * trapezoid(theta_e + PHASE_OFFSET[q]) * i_q
               + k_phase[o] * shape_o * outgoing_new)
-    sign = 1.0 if torque > 0.0 else (-1.0 if torque < 0.0 else 0.0)
-    return pair_new, outgoing_new, torque, 0.5 * (abs(i_p) + abs(i_q) + abs(outgoing_new)) * sign
+    return pair_new, outgoing_new, torque, equivalent_current(i_p, i_q, outgoing_new, torque)
 
 
 @njit(cache=True)
-def simulate_monitor(command, load_torque, load_stiffness, elec, mech, ctrl, sens, faults,
-                     short_circuit_model, eccentricity_model, gain_scale, commutation_loss,
-                     commutation, substeps, position, speed, current, motor_angle):
-    """Run the Monitor Model over ``command.size`` controller periods.
+def simulate_monitor(drive, plant, faults, options, out):
+    """Run the Monitor Model over ``drive.command.size`` controller periods.
 
-    Same sampling contract as the Reference kernel: row k holds the feedback at
+    Same sampling contract as the Reference kernel: row k of ``out``
+    (:class:`~emaprog.kernels.structs.MonitorOutputs`) holds the feedback at
     ``k T`` (offset and ADC applied, no noise) and the current averaged over the
-    period ending at ``k T``. ``faults.ecc_magnitude`` is Z (already ``c zeta``).
+    period ending at ``k T``. ``faults`` is a
+    :class:`~emaprog.kernels.structs.MonitorFaults` (eccentricity as Z = c zeta).
 
-    ``gain_scale`` [-] and ``commutation_loss`` [s/rad] are the calibrated
-    nominal equivalents: the torque per equivalent ampere is
+    ``options.torque_gain_scale`` [-] and ``options.commutation_loss`` [s/rad]
+    are the calibrated nominal equivalents: the torque per equivalent ampere is
     ``gain_scale 2 k_e (1 - commutation_loss |omega|)``. The second term stands
     for the Reference motor's commutation torque dips when ``commutation`` is
     off (the transients are not modelled); without it that Monitor explains
@@ -199,12 +207,15 @@ def simulate_monitor(command, load_torque, load_stiffness, elec, mech, ctrl, sen
     on, the dips come out of :func:`commutation_step` and the calibrated loss
     is zero.
     """
-    n = command.size
-    dt = ctrl.period / substeps
+    elec, mech = plant.electrical, plant.mechanical
+    n = drive.command.size
+    substeps = options.substeps
+    dt = plant.controller.period / substeps
     pp = elec.pole_pairs
     n_a = 1.0 - faults.short_a
     n_b = 1.0 - faults.short_b
     n_c = 1.0 - faults.short_c
+    gain_scale = options.torque_gain_scale
     base_gain = gain_scale * 2.0 * elec.back_emf_constant
     base_r = 2.0 * elec.phase_resistance
     base_l = 2.0 * elec.phase_inductance
@@ -213,13 +224,16 @@ def simulate_monitor(command, load_torque, load_stiffness, elec, mech, ctrl, sen
     sector_r = np.empty(6)
     sector_decay = np.empty(6)
     for s6 in range(6):
-        f_psc, f_l = sector_short_circuit_factors(s6, n_a, n_b, n_c, short_circuit_model)
+        f_psc, f_l = sector_short_circuit_factors(s6, n_a, n_b, n_c, options.short_circuit_model)
         sector_gain[s6] = base_gain * f_psc
         sector_r[s6] = base_r * f_psc
         sector_decay[s6] = math.exp(-base_r * f_psc * dt / (base_l * f_l))
-    eccentric = faults.ecc_magnitude != 0.0
+    z = faults.eccentricity_z
+    phi = faults.eccentricity_phase
+    eccentric = z != 0.0
+    paper_shape = options.eccentricity_model == ECCENTRICITY_PAPER
     working = np.array([n_a, n_b, n_c])
-    if short_circuit_model == SHORT_CIRCUIT_AVERAGED:
+    if options.short_circuit_model == SHORT_CIRCUIT_AVERAGED:
         n_eq = (n_a + n_b + n_c) / 3.0
         phase_working = np.array([n_eq, n_eq, n_eq])
     else:
@@ -239,30 +253,27 @@ def simulate_monitor(command, load_torque, load_stiffness, elec, mech, ctrl, sen
     i = 0.0
     mean_current = 0.0
     for k in range(n):
-        pos_meas = quantize(theta_s + sens.position_offset, sens.position_lsb, sens.position_range)
-        spd_meas = quantize(omega_m, sens.speed_lsb, sens.speed_range)
-        position[k] = pos_meas
-        speed[k] = spd_meas
-        motor_angle[k] = theta_m
-        current[k] = mean_current
-        current_ref, position_int, speed_int = controller_update(
-            command[k], pos_meas, spd_meas, position_int, speed_int, ctrl)
+        pos_meas, spd_meas, current_ref, position_int, speed_int = sample_and_control(
+            drive.command[k], theta_s, omega_m, 0.0, 0.0, position_int, speed_int, plant)
+        out.position[k] = pos_meas
+        out.speed[k] = spd_meas
+        out.motor_angle[k] = theta_m
+        out.current[k] = mean_current
+        load = drive.load_torque[k] + drive.load_offset
         mean_current = 0.0
         for _ in range(substeps):
             theta_e = pp * theta_m
             s6 = sector(theta_e)
             gain = sector_gain[s6]
-            if eccentric and eccentricity_model == ECCENTRICITY_PAPER:
-                ecc = 1.0 - faults.ecc_magnitude * eccentricity_shape(
-                    theta_e, s6, faults.ecc_phase, eccentricity_model)
+            if eccentric and paper_shape:
+                ecc = 1.0 - z * eccentricity_shape(theta_e, s6, phi, ECCENTRICITY_PAPER)
                 gain *= ecc
                 for x in range(3):
                     k_phase[x] = unit_k * phase_working[x] * ecc
             elif eccentric:
-                gain = pair_eccentricity_coefficients(theta_e, s6, faults.ecc_magnitude,
-                                                      faults.ecc_phase, phase_working, unit_k,
+                gain = pair_eccentricity_coefficients(theta_e, s6, z, phi, phase_working, unit_k,
                                                       k_phase)
-            if s6 != last_sector and commutation:
+            if s6 != last_sector and options.commutation:
                 # the new idle phase was in the old pair: it keeps its current
                 idle = IDLE_PHASE[s6]
                 outgoing = i if POSITIVE_PHASE[last_sector] == idle else -i
@@ -277,9 +288,9 @@ def simulate_monitor(command, load_torque, load_stiffness, elec, mech, ctrl, sen
                                            omega_m, elec.dc_bus_voltage)
                 torque = gain * i
                 measured = i
-            torque *= max(0.0, 1.0 - commutation_loss * abs(omega_m))
-            theta_m, omega_m, theta_s, omega_s, _, _ = mechanics_step(
-                theta_m, omega_m, theta_s, omega_s, torque, load_torque[k], load_stiffness,
+            torque *= max(0.0, 1.0 - options.commutation_loss * abs(omega_m))
+            theta_m, omega_m, theta_s, omega_s, _ = mechanics_step(
+                theta_m, omega_m, theta_s, omega_s, torque, load, drive.load_stiffness,
                 faults.friction, faults.backlash, mech, dt)
             mean_current += measured
         mean_current /= substeps
@@ -300,58 +311,89 @@ def moving_average(x, width, out):
         out[k] = (csum[hi] - csum[lo]) / (hi - lo)
 
 
-@njit(cache=True, parallel=True)
-def evaluate_population(candidates, command, load_torque, load_stiffness, elec, mech, ctrl, sens,
-                        short_circuit_model, eccentricity_model, gain_scale, commutation_loss,
-                        commutation, substeps, target_current, target_position, target_speed, weights, filter_width,
-                        sample_weight, fitness):
+@njit(cache=True)
+def unit_plant(plant, row):
+    """``plant`` with the unit-to-unit values of one :data:`~emaprog.kernels.structs.UNIT_COLUMNS` row."""
+    e, m = plant.electrical, plant.mechanical
+    electrical = ElectricalParams(e.dc_bus_voltage, e.pole_pairs, row[U_PHASE_RESISTANCE],
+                                  row[U_PHASE_INDUCTANCE], row[U_BACK_EMF_CONSTANT],
+                                  e.current_limit, e.hysteresis_band)
+    mechanical = MechanicalParams(row[U_MOTOR_INERTIA], row[U_MOTOR_VISCOUS],
+                                  row[U_STATIC_FRICTION], row[U_DYNAMIC_FRICTION], m.gear_ratio,
+                                  row[U_SURFACE_INERTIA], m.surface_damping,
+                                  row[U_TRANSMISSION_STIFFNESS], m.transmission_damping,
+                                  m.end_stop, m.end_stop_stiffness, m.end_stop_damping)
+    return Plant(electrical, mechanical, plant.controller, plant.sensors)
+
+
+@njit(cache=True)
+def _target_norms(target):
+    """Weighted squared norm of each measured signal (current, position, speed)."""
+    norms = np.zeros(3)
+    signals = (target.current, target.position, target.speed)
+    for s in range(3):
+        acc = 0.0
+        for k in range(signals[s].size):
+            acc += target.sample_weight[k] * signals[s][k] ** 2
+        norms[s] = max(acc, 1e-30)
+    return norms
+
+
+@njit(cache=True)
+def evaluate_population(faults, units, drive, plant, options, target, fitness):
     """Fitness of every candidate in one call (parallel over candidates).
 
     Parameters
     ----------
-    candidates : (m, 7) float64
-        Rows of fault values in :class:`~emaprog.faults.FaultParams` order
-        (friction, backlash, short a, b, c, Z, phi).
-    target_current, target_position, target_speed : (n,) float64
-        Measured signals already low-passed with the same ``filter_width``.
-    weights : (3,) float64
-        Weights of the normalised current, position and speed errors.
-    sample_weight : (n,) float64
-        Weight of each sample in the error [-]: 0 leaves it out (start-up,
-        speeds the Monitor is not trusted at), 1 counts it fully.
+    faults : (m, 7) float64
+        Rows of Monitor fault values in :class:`~emaprog.kernels.structs.MonitorFaults`
+        order (friction, backlash, short a, b, c, Z, phi).
+    units : (m, 10) or (1, 10) float64
+        Each candidate's unit: :data:`~emaprog.kernels.structs.UNIT_COLUMNS`
+        (inertias, viscous, friction, resistance, back-EMF constant, inductance,
+        stiffness, constant hinge moment); one row is shared by every candidate.
+    drive, plant, options : Drive, Plant, MonitorOptions
+        ``plant``'s values outside the unit row are used as they are.
+    target : ErrorTarget
+        Measured signals already low-passed with ``target.filter_width``.
     fitness : (m,) float64, output
         ``sum_s w_s ||lp(MM_s) - target_s||^2 / ||target_s||^2``, both norms
-        weighted sample by sample with ``sample_weight``.
+        weighted sample by sample with ``target.sample_weight``.
     """
-    n = command.size
-    norms = np.zeros(3)
-    targets = (target_current, target_position, target_speed)
-    for s in range(3):
-        acc = 0.0
-        for k in range(n):
-            acc += sample_weight[k] * targets[s][k] ** 2
-        norms[s] = max(acc, 1e-30)
-    for j in prange(candidates.shape[0]):
-        row = candidates[j]
-        faults = FaultParams(row[0], row[1], row[2], row[3], row[4], row[5], row[6])
-        pos = np.empty(n)
-        spd = np.empty(n)
-        cur = np.empty(n)
-        ang = np.empty(n)
-        simulate_monitor(command, load_torque, load_stiffness, elec, mech, ctrl, sens, faults,
-                        short_circuit_model, eccentricity_model, gain_scale, commutation_loss,
-                        commutation, substeps, pos, spd, cur, ang)
-        total = 0.0
-        filtered = np.empty(n)
-        signals = (cur, pos, spd)
-        for s in range(3):
-            if weights[s] == 0.0:
-                continue
-            moving_average(signals[s], filter_width, filtered)
-            acc = 0.0
-            target = targets[s]
-            for k in range(n):
-                acc += sample_weight[k] * (filtered[k] - target[k]) ** 2
-            total += weights[s] * acc / norms[s]
-        fitness[j] = total
+    # numba's parallel loop takes flat tuples only: hand it the plant's parts
+    _evaluate_parallel(faults, units, drive, plant.electrical, plant.mechanical, plant.controller,
+                       plant.sensors, options, target, _target_norms(target), fitness)
 
+
+@njit(cache=True, parallel=True)
+def _evaluate_parallel(faults, units, drive, electrical, mechanical, controller, sensors, options,
+                       target, norms, fitness):
+    shared = units.shape[0] == 1
+    for j in prange(faults.shape[0]):
+        fitness[j] = _candidate_fitness(
+            faults[j], units[0] if shared else units[j], drive,
+            Plant(electrical, mechanical, controller, sensors), options, target, norms)
+
+
+@njit(cache=True)
+def _candidate_fitness(row, unit, drive, plant, options, target, norms):
+    """One candidate of :func:`evaluate_population`: run the Monitor, weigh its error."""
+    n = drive.command.size
+    candidate = MonitorFaults(row[0], row[1], row[2], row[3], row[4], row[5], row[6])
+    own_drive = Drive(drive.command, drive.load_torque, drive.load_stiffness, unit[U_HINGE_MOMENT])
+    out = MonitorOutputs(np.empty(n), np.empty(n), np.empty(n), np.empty(n))
+    simulate_monitor(own_drive, unit_plant(plant, unit), candidate, options, out)
+    total = 0.0
+    filtered = np.empty(n)
+    signals = (out.current, out.position, out.speed)
+    targets = (target.current, target.position, target.speed)
+    for s in range(3):
+        if target.weights[s] == 0.0:
+            continue
+        moving_average(signals[s], target.filter_width, filtered)
+        acc = 0.0
+        measured = targets[s]
+        for k in range(n):
+            acc += target.sample_weight[k] * (filtered[k] - measured[k]) ** 2
+        total += target.weights[s] * acc / norms[s]
+    return total

@@ -9,12 +9,14 @@ from .bldc import (
     IDLE_PHASE, NEGATIVE_PHASE, POSITIVE_PHASE, PHASE_OFFSET, equivalent_current,
     phase_coefficient, sector, trapezoid, winding_step,
 )
-from .control import controller_update, quantize
-from .mechanics import end_stop_torque, mechanics_step
+from .control import quantize, sample_and_control
+from .mechanics import mechanics_step
 
 #: Slots of the energy ledger written by :func:`simulate_reference` [J].
 ENERGY_SLOTS = ("inverter", "copper", "friction", "viscous", "link_damping", "load",
                 "end_stop", "stored_initial", "stored_final")
+(E_INVERTER, E_COPPER, E_FRICTION, E_VISCOUS, E_LINK_DAMPING, E_LOAD, E_END_STOP,
+ E_STORED_INITIAL, E_STORED_FINAL) = range(len(ENERGY_SLOTS))
 
 #: Slots of the state carried from one call of :func:`simulate_reference` to the next,
 #: so that a long run can be done in chunks (progress bar) with the same numbers.
@@ -22,14 +24,15 @@ STATE_SLOTS = ("current_a", "current_b", "current_c", "motor_angle", "motor_spee
                "surface_angle", "surface_speed", "position_integral", "speed_integral",
                "bridge", "mean_current", "mean_current_a", "mean_current_b", "mean_current_c",
                "mean_torque")
-_I0, _I1, _I2, _THETA_M, _OMEGA_M, _THETA_S, _OMEGA_S, _POS_INT, _SPD_INT, _BRIDGE, \
-    _ACC_EQ, _ACC_A, _ACC_B, _ACC_C, _ACC_T = range(len(STATE_SLOTS))
+(S_CURRENT_A, S_CURRENT_B, S_CURRENT_C, S_MOTOR_ANGLE, S_MOTOR_SPEED, S_SURFACE_ANGLE,
+ S_SURFACE_SPEED, S_POSITION_INTEGRAL, S_SPEED_INTEGRAL, S_BRIDGE, S_MEAN_CURRENT,
+ S_MEAN_CURRENT_A, S_MEAN_CURRENT_B, S_MEAN_CURRENT_C, S_MEAN_TORQUE) = range(len(STATE_SLOTS))
 
 
 def initial_state() -> np.ndarray:
     """The state at rest (all zeros; the bridge starts driving positive current)."""
     state = np.zeros(len(STATE_SLOTS))
-    state[_BRIDGE] = 1.0
+    state[S_BRIDGE] = 1.0
     return state
 
 
@@ -44,29 +47,32 @@ def _stored_energy(i, l, theta_m, omega_m, theta_s, omega_s, backlash, mech):
 
 
 @njit(cache=True)
-def simulate_reference(command, load_torque, load_stiffness, noise_position, noise_speed,
-                       noise_current, elec, mech, ctrl, sens, faults, substeps,
-                       position, speed, current, current_a, current_b, current_c,
-                       torque_out, motor_angle, energy, state, start, stop):
+def _sample_currents(k, acc_eq, acc_a, acc_b, acc_c, acc_t, noise, sens, out):
+    """Write period k's integrate-and-dump currents (line noise, ADC) and torque into ``out``."""
+    out.current[k] = quantize(acc_eq + noise.current[k], sens.current_lsb, sens.current_range)
+    out.current_a[k] = quantize(acc_a + noise.current_a[k], sens.current_lsb, sens.current_range)
+    out.current_b[k] = quantize(acc_b + noise.current_b[k], sens.current_lsb, sens.current_range)
+    out.current_c[k] = quantize(acc_c + noise.current_c[k], sens.current_lsb, sens.current_range)
+    out.torque[k] = acc_t
+
+
+@njit(cache=True)
+def simulate_reference(drive, noise, plant, faults, substeps, out, energy, state, start, stop):
     """Run the Reference Model over controller periods ``start`` to ``stop - 1``.
 
     Parameters
     ----------
-    command, load_torque : (n,) float64
-        Surface position command [rad] and hinge-moment offset [N m] per period.
-    load_stiffness : float
-        Aerodynamic spring [N m/rad].
-    noise_position, noise_speed : (n,) float64
-        Electrical noise on the feedback lines [rad], [rad/s] (drawn outside).
-    noise_current : (n, 4) float64
-        Noise on the recorded equivalent and phase currents [A].
-    elec, mech, ctrl, sens : NamedTuple
-        Parameter structs (:mod:`emaprog.parameters`).
+    drive : Drive
+        Command [rad], hinge moment [N m] per period, aerodynamic spring [N m/rad].
+    noise : SensorNoise
+        Electrical noise on the feedback and current lines (drawn outside).
+    plant : Plant
+        Parameter structs (:mod:`emaprog.kernels.structs`).
     faults : FaultParams
-        ``ecc_magnitude`` is the eccentricity zeta [-].
+        Physical fault magnitudes (eccentricity as zeta).
     substeps : int
         Integration steps per controller period (time step = period / substeps).
-    position ... motor_angle : (n,) float64, outputs
+    out : ReferenceOutputs
         Row k holds the feedback sampled at ``k T`` and the currents/torque
         averaged over the period ending at ``k T`` (integrate-and-dump ADC).
     energy : (9,) float64, in/out
@@ -78,46 +84,43 @@ def simulate_reference(command, load_torque, load_stiffness, noise_position, noi
     start, stop : int
         Rows to compute (``0 <= start <= stop <= command.size``).
     """
-    dt = ctrl.period / substeps
+    elec, mech = plant.electrical, plant.mechanical
+    dt = plant.controller.period / substeps
     pp = elec.pole_pairs
     working = np.array([1.0 - faults.short_a, 1.0 - faults.short_b, 1.0 - faults.short_c])
     r = working * elec.phase_resistance
     l = working * working * elec.phase_inductance
-    i = np.array([state[_I0], state[_I1], state[_I2]])
+    i = np.array([state[S_CURRENT_A], state[S_CURRENT_B], state[S_CURRENT_C]])
     e = np.zeros(3)
     legs = np.zeros(3, dtype=np.int64)
     v_scratch = np.zeros(3)
     tied_scratch = np.zeros(3, dtype=np.int64)
-    theta_m = state[_THETA_M]
-    omega_m = state[_OMEGA_M]
-    theta_s = state[_THETA_S]
-    omega_s = state[_OMEGA_S]
-    position_int = state[_POS_INT]
-    speed_int = state[_SPD_INT]
-    bridge = int(state[_BRIDGE])
-    acc_eq = state[_ACC_EQ]
-    acc_a = state[_ACC_A]
-    acc_b = state[_ACC_B]
-    acc_c = state[_ACC_C]
-    acc_t = state[_ACC_T]
+    theta_m = state[S_MOTOR_ANGLE]
+    omega_m = state[S_MOTOR_SPEED]
+    theta_s = state[S_SURFACE_ANGLE]
+    omega_s = state[S_SURFACE_SPEED]
+    position_int = state[S_POSITION_INTEGRAL]
+    speed_int = state[S_SPEED_INTEGRAL]
+    bridge = int(state[S_BRIDGE])
+    acc_eq = state[S_MEAN_CURRENT]
+    acc_a = state[S_MEAN_CURRENT_A]
+    acc_b = state[S_MEAN_CURRENT_B]
+    acc_c = state[S_MEAN_CURRENT_C]
+    acc_t = state[S_MEAN_TORQUE]
     if start == 0:
         for slot in range(energy.size):
             energy[slot] = 0.0
-        energy[7] = _stored_energy(i, l, theta_m, omega_m, theta_s, omega_s, faults.backlash, mech)
+        energy[E_STORED_INITIAL] = _stored_energy(i, l, theta_m, omega_m, theta_s, omega_s,
+                                                  faults.backlash, mech)
     for k in range(start, stop):
-        pos_meas = quantize(theta_s + sens.position_offset + noise_position[k],
-                            sens.position_lsb, sens.position_range)
-        spd_meas = quantize(omega_m + noise_speed[k], sens.speed_lsb, sens.speed_range)
-        position[k] = pos_meas
-        speed[k] = spd_meas
-        motor_angle[k] = theta_m
-        current[k] = quantize(acc_eq + noise_current[k, 0], sens.current_lsb, sens.current_range)
-        current_a[k] = quantize(acc_a + noise_current[k, 1], sens.current_lsb, sens.current_range)
-        current_b[k] = quantize(acc_b + noise_current[k, 2], sens.current_lsb, sens.current_range)
-        current_c[k] = quantize(acc_c + noise_current[k, 3], sens.current_lsb, sens.current_range)
-        torque_out[k] = acc_t
-        current_ref, position_int, speed_int = controller_update(
-            command[k], pos_meas, spd_meas, position_int, speed_int, ctrl)
+        pos_meas, spd_meas, current_ref, position_int, speed_int = sample_and_control(
+            drive.command[k], theta_s, omega_m, noise.position[k], noise.speed[k],
+            position_int, speed_int, plant)
+        out.position[k] = pos_meas
+        out.speed[k] = spd_meas
+        out.motor_angle[k] = theta_m
+        _sample_currents(k, acc_eq, acc_a, acc_b, acc_c, acc_t, noise, plant.sensors, out)
+        load = drive.load_torque[k] + drive.load_offset
         acc_eq = 0.0
         acc_a = 0.0
         acc_b = 0.0
@@ -139,8 +142,8 @@ def simulate_reference(command, load_torque, load_stiffness, noise_position, noi
             legs[IDLE_PHASE[s6]] = 0
             torque = 0.0
             for x in range(3):
-                kx = phase_coefficient(theta_e, working[x], faults.ecc_magnitude,
-                                       faults.ecc_phase, x, elec.back_emf_constant)
+                kx = phase_coefficient(theta_e, working[x], faults.eccentricity_zeta,
+                                       faults.eccentricity_phase, x, elec.back_emf_constant)
                 shape = kx * trapezoid(theta_e + PHASE_OFFSET[x])
                 e[x] = shape * omega_m
                 torque += shape * i[x]
@@ -148,21 +151,19 @@ def simulate_reference(command, load_torque, load_stiffness, noise_position, noi
             power = winding_step(i, legs, e, r, l, elec.dc_bus_voltage, dt, v_scratch, tied_scratch)
             omega_m_old = omega_m
             omega_s_old = omega_s
-            spring = _spring_part(theta_m, theta_s, faults.backlash, mech)
-            hinge = load_torque[k] + load_stiffness * theta_s
-            stop = end_stop_torque(theta_s, omega_s, mech)
-            theta_m, omega_m, theta_s, omega_s, link, friction = mechanics_step(
-                theta_m, omega_m, theta_s, omega_s, torque, load_torque[k], load_stiffness,
+            theta_m, omega_m, theta_s, omega_s, applied = mechanics_step(
+                theta_m, omega_m, theta_s, omega_s, torque, load, drive.load_stiffness,
                 faults.friction, faults.backlash, mech, dt)
-            energy[0] += power * dt
-            energy[1] += copper * dt
-            energy[2] -= friction * omega_m * dt
-            energy[3] += (mech.motor_viscous * omega_m_old * omega_m
-                          + mech.surface_damping * omega_s_old * omega_s) * dt
-            if link != 0.0:
-                energy[4] += (link - spring) * (omega_m / mech.gear_ratio - omega_s) * dt
-            energy[5] += hinge * omega_s * dt
-            energy[6] -= stop * omega_s * dt
+            energy[E_INVERTER] += power * dt
+            energy[E_COPPER] += copper * dt
+            energy[E_FRICTION] -= applied.friction * omega_m * dt
+            energy[E_VISCOUS] += (mech.motor_viscous * omega_m_old * omega_m
+                                  + mech.surface_damping * omega_s_old * omega_s) * dt
+            if applied.link != 0.0:
+                energy[E_LINK_DAMPING] += ((applied.link - applied.spring)
+                                           * (omega_m / mech.gear_ratio - omega_s) * dt)
+            energy[E_LOAD] += applied.hinge * omega_s * dt
+            energy[E_END_STOP] -= applied.end_stop * omega_s * dt
             acc_eq += equivalent_current(i[0], i[1], i[2], torque)
             acc_a += i[0]
             acc_b += i[1]
@@ -173,30 +174,13 @@ def simulate_reference(command, load_torque, load_stiffness, noise_position, noi
         acc_b /= substeps
         acc_c /= substeps
         acc_t /= substeps
-    energy[8] = _stored_energy(i, l, theta_m, omega_m, theta_s, omega_s, faults.backlash, mech)
-    state[_I0] = i[0]
-    state[_I1] = i[1]
-    state[_I2] = i[2]
-    state[_THETA_M] = theta_m
-    state[_OMEGA_M] = omega_m
-    state[_THETA_S] = theta_s
-    state[_OMEGA_S] = omega_s
-    state[_POS_INT] = position_int
-    state[_SPD_INT] = speed_int
-    state[_BRIDGE] = bridge
-    state[_ACC_EQ] = acc_eq
-    state[_ACC_A] = acc_a
-    state[_ACC_B] = acc_b
-    state[_ACC_C] = acc_c
-    state[_ACC_T] = acc_t
-
-
-@njit(cache=True)
-def _spring_part(theta_m, theta_s, backlash, mech):
-    twist = theta_m / mech.gear_ratio - theta_s
-    half = 0.5 * backlash
-    if twist > half:
-        return mech.transmission_stiffness * (twist - half)
-    if twist < -half:
-        return mech.transmission_stiffness * (twist + half)
-    return 0.0
+    energy[E_STORED_FINAL] = _stored_energy(i, l, theta_m, omega_m, theta_s, omega_s,
+                                            faults.backlash, mech)
+    for slot, value in ((S_CURRENT_A, i[0]), (S_CURRENT_B, i[1]), (S_CURRENT_C, i[2]),
+                        (S_MOTOR_ANGLE, theta_m), (S_MOTOR_SPEED, omega_m),
+                        (S_SURFACE_ANGLE, theta_s), (S_SURFACE_SPEED, omega_s),
+                        (S_POSITION_INTEGRAL, position_int), (S_SPEED_INTEGRAL, speed_int),
+                        (S_BRIDGE, float(bridge)), (S_MEAN_CURRENT, acc_eq),
+                        (S_MEAN_CURRENT_A, acc_a), (S_MEAN_CURRENT_B, acc_b),
+                        (S_MEAN_CURRENT_C, acc_c), (S_MEAN_TORQUE, acc_t)):
+        state[slot] = value

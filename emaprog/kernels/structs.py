@@ -1,21 +1,176 @@
-"""NamedTuples the kernels take that are not parameter sets."""
+"""The named structs the kernels take: parameters, inputs, faults, options, outputs.
+
+numba compiles NamedTuples field by field, so every kernel argument has a name
+and a unit here and no kernel unpacks an anonymous tuple or slot index. The
+parameter structs are built from a validated parameter set by
+:func:`emaprog.config.parameters.derive`; the others by the model runners.
+"""
 
 from __future__ import annotations
 
 from typing import NamedTuple
 
+import numpy as np
 
+
+# ---------------------------------------------------------------- parameters
+class ElectricalParams(NamedTuple):
+    dc_bus_voltage: float  # [V]
+    pole_pairs: float  # [-]
+    phase_resistance: float  # [ohm]
+    phase_inductance: float  # [H]
+    back_emf_constant: float  # [V s/rad] per phase
+    current_limit: float  # [A]
+    hysteresis_band: float  # [A]
+
+
+class MechanicalParams(NamedTuple):
+    motor_inertia: float  # [kg m^2]
+    motor_viscous: float  # [N m s/rad]
+    static_friction: float  # [N m]
+    dynamic_friction: float  # [N m]
+    gear_ratio: float  # [-]
+    surface_inertia: float  # [kg m^2]
+    surface_damping: float  # [N m s/rad]
+    transmission_stiffness: float  # [N m/rad]
+    transmission_damping: float  # [N m s/rad]
+    end_stop: float  # [rad]
+    end_stop_stiffness: float  # [N m/rad]
+    end_stop_damping: float  # [N m s/rad]
+
+
+class ControllerParams(NamedTuple):
+    period: float  # [s] derived: 1 / rate
+    position_gain: float
+    position_integral: float
+    speed_gain: float
+    speed_integral: float
+    speed_limit: float
+    current_limit: float  # [A] copied from electrical: the loop saturates I_ref
+
+
+class SensorParams(NamedTuple):
+    position_offset: float  # [rad]
+    position_lsb: float  # [rad] derived: 2 range / 2^bits
+    speed_lsb: float  # [rad/s] derived
+    current_lsb: float  # [A] derived
+    position_range: float  # [rad]
+    speed_range: float  # [rad/s]
+    current_range: float  # [A]
+
+
+class Plant(NamedTuple):
+    """One actuator unit: motor and drive, transmission, controller, sensors."""
+
+    electrical: ElectricalParams
+    mechanical: MechanicalParams
+    controller: ControllerParams
+    sensors: SensorParams
+
+
+#: Columns of a per-candidate unit row (:func:`emaprog.kernels.monitor.evaluate_population`):
+#: the physical values that vary from unit to unit, and the recording's constant hinge
+#: moment. Units: kg m^2, kg m^2, N m s/rad, N m, N m, ohm, V s/rad, H, N m/rad, N m.
+UNIT_COLUMNS = ("motor_inertia", "surface_inertia", "motor_viscous", "static_friction",
+                "dynamic_friction", "phase_resistance", "back_emf_constant", "phase_inductance",
+                "transmission_stiffness", "hinge_moment")
+
+
+def unit_row(plant: Plant, hinge_moment: float = 0.0) -> np.ndarray:
+    """The :data:`UNIT_COLUMNS` row of a plant as it is [SI]."""
+    e, m = plant.electrical, plant.mechanical
+    return np.array([m.motor_inertia, m.surface_inertia, m.motor_viscous, m.static_friction,
+                     m.dynamic_friction, e.phase_resistance, e.back_emf_constant,
+                     e.phase_inductance, m.transmission_stiffness, hinge_moment])
+
+
+# ---------------------------------------------------------------- inputs
+class Drive(NamedTuple):
+    """Operating inputs on the controller grid: the command and the hinge moment."""
+
+    command: np.ndarray  # (n,) [rad] surface position command
+    load_torque: np.ndarray  # (n,) [N m] hinge moment opposing +deflection
+    load_stiffness: float  # [N m/rad] aerodynamic spring
+    load_offset: float  # [N m] constant hinge moment added to load_torque (a nuisance)
+
+
+class SensorNoise(NamedTuple):
+    """Electrical noise on the signal lines, drawn outside the kernels (one value per period)."""
+
+    position: np.ndarray  # (n,) [rad]
+    speed: np.ndarray  # (n,) [rad/s]
+    current: np.ndarray  # (n,) [A] equivalent-current line
+    current_a: np.ndarray  # (n,) [A]
+    current_b: np.ndarray  # (n,) [A]
+    current_c: np.ndarray  # (n,) [A]
+
+
+# ---------------------------------------------------------------- faults
 class FaultParams(NamedTuple):
-    """Fault magnitudes as the kernels take them.
-
-    ``ecc_magnitude`` is the air-gap reduction zeta for the Reference Model and
-    the shape-function amplitude Z = c zeta for the Monitor Model.
-    """
+    """Fault magnitudes in physical form (Reference Model)."""
 
     friction: float  # [-] dry-friction multiplier k_f
     backlash: float  # [rad] total play on the output shaft
     short_a: float  # [-] shorted fraction of phase A turns
     short_b: float  # [-]
     short_c: float  # [-]
-    ecc_magnitude: float  # [-] zeta (RM) or Z (MM)
-    ecc_phase: float  # [rad] phi
+    eccentricity_zeta: float  # [-] air-gap reduction / nominal gap
+    eccentricity_phase: float  # [rad] phi
+
+
+class MonitorFaults(NamedTuple):
+    """Fault magnitudes in the Monitor's form: eccentricity as the shape amplitude Z = c zeta."""
+
+    friction: float  # [-]
+    backlash: float  # [rad]
+    short_a: float  # [-]
+    short_b: float  # [-]
+    short_c: float  # [-]
+    eccentricity_z: float  # [-] Z of the RE shape function
+    eccentricity_phase: float  # [rad]
+
+
+# ---------------------------------------------------------------- options
+class MonitorOptions(NamedTuple):
+    """How the Monitor is built: fault laws, calibrated equivalents, numerical step."""
+
+    short_circuit_model: int  # SHORT_CIRCUIT_MODULATED | SHORT_CIRCUIT_AVERAGED
+    eccentricity_model: int  # ECCENTRICITY_PAIR | ECCENTRICITY_PAPER
+    torque_gain_scale: float  # [-] nominal torque/back-EMF gain correction
+    commutation_loss: float  # [s/rad] torque-per-ampere drop with speed
+    commutation: bool  # model the outgoing phase's freewheeling after each sector change
+    substeps: int  # integration steps per controller period
+
+
+class ErrorTarget(NamedTuple):
+    """What a batch of Monitor runs is compared with (identification, calibration, commissioning)."""
+
+    current: np.ndarray  # (n,) [A] measured, low-passed with filter_width
+    position: np.ndarray  # (n,) [rad]
+    speed: np.ndarray  # (n,) [rad/s]
+    weights: np.ndarray  # (3,) [-] of the normalised current, position, speed errors
+    filter_width: int  # [samples] centred moving average applied to the Monitor's signals
+    sample_weight: np.ndarray  # (n,) [-] weight of each sample (0 leaves it out)
+
+
+# ---------------------------------------------------------------- outputs
+class MonitorOutputs(NamedTuple):
+    """Preallocated (n,) arrays a Monitor run writes; row k as in the trace contract."""
+
+    position: np.ndarray  # [rad]
+    speed: np.ndarray  # [rad/s]
+    current: np.ndarray  # [A] equivalent current, mean over the period ending at k T
+    motor_angle: np.ndarray  # [rad]
+
+
+class ReferenceOutputs(NamedTuple):
+    """Preallocated (n,) arrays a Reference run writes."""
+
+    position: np.ndarray  # [rad]
+    speed: np.ndarray  # [rad/s]
+    current: np.ndarray  # [A]
+    current_a: np.ndarray  # [A]
+    current_b: np.ndarray  # [A]
+    current_c: np.ndarray  # [A]
+    torque: np.ndarray  # [N m]
+    motor_angle: np.ndarray  # [rad]

@@ -7,6 +7,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import __version__, signals
+from ..kernels.structs import Drive
 from ..parameters import Parameters
 from ..scenario import Scenario
 
@@ -18,6 +19,10 @@ class Inputs(NamedTuple):
     command: np.ndarray  # [rad]
     load_torque: np.ndarray  # [N m]
     load_stiffness: float  # [N m/rad]
+
+    def drive(self, hinge_moment: float = 0.0) -> Drive:
+        """The kernels' :class:`~emaprog.kernels.structs.Drive`, plus a constant hinge moment [N m]."""
+        return Drive(self.command, self.load_torque, float(self.load_stiffness), float(hinge_moment))
 
 
 def inputs(scenario: Scenario, params: Parameters) -> Inputs:

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..faults import FaultParams, to_params
+from ..faults import MonitorFaults, flatten, monitor_form
 from ..kernels.monitor import (
     ECCENTRICITY_PAIR, ECCENTRICITY_PAPER, SHORT_CIRCUIT_AVERAGED, SHORT_CIRCUIT_MODULATED,
     simulate_monitor,
 )
+from ..kernels.structs import MonitorOptions, MonitorOutputs
 from ..numerics import DEFAULT, Numerics
 from ..parameters import Parameters
 from ..scenario import Scenario
@@ -19,33 +20,32 @@ SHORT_CIRCUIT_MODELS = {"modulated": SHORT_CIRCUIT_MODULATED, "averaged": SHORT_
 ECCENTRICITY_MODELS = {"pair": ECCENTRICITY_PAIR, "paper": ECCENTRICITY_PAPER}
 
 
-def model_flags(params: Parameters) -> tuple[int, int, float, float, bool]:
-    """Kernel arguments of the parameter set's monitor section.
-
-    (PSC law, RE law, torque gain scale [-], commutation loss [s/rad],
-    commutation transients modelled).
-    """
+def options(params: Parameters, numerics: Numerics = DEFAULT) -> MonitorOptions:
+    """The kernel options of the parameter set's ``monitor:`` section and the Monitor step."""
     m = params.spec.monitor
-    return (SHORT_CIRCUIT_MODELS[m.short_circuit_model], ECCENTRICITY_MODELS[m.eccentricity_model],
-            m.torque_gain_scale, m.commutation_loss, m.commutation_model == "transient")
+    return MonitorOptions(SHORT_CIRCUIT_MODELS[m.short_circuit_model],
+                          ECCENTRICITY_MODELS[m.eccentricity_model], m.torque_gain_scale,
+                          m.commutation_loss, m.commutation_model == "transient",
+                          numerics.monitor_substeps)
 
 
-def run(params: Parameters, inp: Inputs, faults: FaultParams, numerics: Numerics = DEFAULT,
-        flags: tuple[int, int, float, float, bool] | None = None) -> dict[str, np.ndarray]:
-    """Run the Monitor kernel; ``faults.ecc_magnitude`` is Z. Returns trace columns."""
+def run(params: Parameters, inp: Inputs, faults: MonitorFaults, numerics: Numerics = DEFAULT,
+        opts: MonitorOptions | None = None, hinge_moment: float = 0.0) -> dict[str, np.ndarray]:
+    """Run the Monitor kernel (eccentricity as Z); returns trace columns.
+
+    ``opts`` overrides the options of ``params`` and ``numerics`` (calibration);
+    ``hinge_moment`` [N m] is added to the inputs' load.
+    """
     n = inp.time.size
-    names = ("position", "speed", "current", "motor_angle")
-    out = {name: np.empty(n) for name in names}
-    flags = flags if flags is not None else model_flags(params)
-    simulate_monitor(inp.command, inp.load_torque, inp.load_stiffness, params.electrical,
-                     params.mechanical, params.controller, params.sensors, faults, *flags,
-                     numerics.monitor_substeps, *(out[name] for name in names))
-    return {"time": inp.time, "command": inp.command, **out}
+    out = MonitorOutputs(np.empty(n), np.empty(n), np.empty(n), np.empty(n))
+    simulate_monitor(inp.drive(hinge_moment), params.plant, faults,
+                     opts if opts is not None else options(params, numerics), out)
+    return {"time": inp.time, "command": inp.command, **out._asdict()}
 
 
 def simulate(scenario: Scenario, params: Parameters, numerics: Numerics = DEFAULT) -> Trace:
     """Simulate a scenario's true faults on the Monitor (zeta mapped through c)."""
-    faults = to_params(scenario.faults, params.spec.monitor.eccentricity_gain)
+    faults = monitor_form(flatten(scenario.faults), params.spec.monitor.eccentricity_gain)
     columns = run(params, inputs(scenario, params), faults, numerics)
     meta = provenance("monitor", scenario, params,
                       time_step=params.controller.period / numerics.monitor_substeps)
