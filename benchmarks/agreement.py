@@ -25,7 +25,7 @@ from emaprog.identification.objective import low_pass  # noqa: E402
 from emaprog.kernels.monitor import SHORT_CIRCUIT_AVERAGED  # noqa: E402
 from emaprog.models import monitor, reference  # noqa: E402
 from emaprog.models.common import inputs  # noqa: E402
-from emaprog.scenario import load_scenario  # noqa: E402
+from emaprog.config.scenario import load_scenario  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 

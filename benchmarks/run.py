@@ -20,12 +20,14 @@ import numba
 import numpy as np
 import yaml
 
-from emaprog import api, parameters
+from emaprog import api
+
+from emaprog.config import parameters
 from emaprog.faults import flatten, healthy_values, monitor_form, reference_form
 from emaprog.identification.objective import Objective
 from emaprog.models import monitor, reference
 from emaprog.models.common import inputs
-from emaprog.scenario import IdentifySettings, load_scenario
+from emaprog.config.scenario import IdentifySettings, load_scenario
 
 ROOT = Path(__file__).resolve().parent.parent
 FIG10 = ROOT / "configs" / "fig10-multiple-faults.yaml"
@@ -85,9 +87,9 @@ def measure(repeat: int) -> dict[str, float]:
 
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "fig10.parquet"
-        api.simulate(FIG10, path)
+        api.simulate(FIG10, output=path)
         figures["identify_s"] = median_time(
-            lambda: api.identify(path, None, Path(tmp) / "report", show_progress=False),
+            lambda: api.identify(path, output=Path(tmp) / "report"),
             max(1, repeat // 2))
     figures["sweep_cases_per_min"] = SWEEP_CASES / (median_time(
         lambda: sweep_once(SWEEP_CASES), max(1, repeat // 2)) / 60.0)

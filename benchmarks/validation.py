@@ -21,10 +21,11 @@ CASES = ("chirp-nominal", "friction", "backlash", "short-circuit", "eccentricity
 def main(out: Path = ROOT / "docs") -> list[dict]:
     results = []
     for name in CASES:
-        trace, _ = api.simulate(ROOT / "configs" / f"{name}.yaml", out / "validation" / f"{name}.parquet")
-        report, _ = api.identify(trace, None, out / "validation" / name, show_progress=False)
+        trace = out / "validation" / f"{name}.parquet"
+        api.simulate(ROOT / "configs" / f"{name}.yaml", output=trace)
+        report = api.identify(trace, output=out / "validation" / name)
         trace.unlink()
-        results.append({"case": name, **report})
+        results.append({"case": name, **report.data})
     lines = ["# Identification on the shipped configs (twin experiments)", "",
              "Reference Model traces with sensor noise, identified with the default settings",
              "(population 64, 40 generations, Powell refinement, nominal-discrepancy correction).",

@@ -1,22 +1,34 @@
-"""What the CLI, tests and notebooks share: check, simulate, identify, calibrate, sweep."""
+"""What the CLI, tests and notebooks share: check, simulate, identify, calibrate, sweep, trend.
+
+Every function takes paths or in-memory objects, returns a typed result (a
+trace as a pandas DataFrame with its units in ``attrs``, a report as a frozen
+dataclass whose ``data`` is the ``report.json`` content) and writes files only
+where it is given an output (``sweep`` and ``trend --simulate`` always store
+their cases: that is what makes them resumable). Errors in user input raise
+:class:`~emaprog.errors.InputError`.
+"""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal, NamedTuple
+from typing import Any, Literal, NamedTuple
+
+import pandas as pd
 
 from . import __version__
-from . import parameters as parameter_sets
+from .config import parameters as parameter_sets
+from .config.parameters import Parameters
+from .config.scenario import (
+    IdentifySettings, Scenario, load_any, load_scenario, parse_scenario,
+)
 from .errors import InputError
-from .faults import flatten, nested, worst_phase
+from .faults import PHASE_FAULT, flatten, nested, worst_phase
 from .identification import check_sampling, identify_trace
 from .identification import result as verdicts
+from .io.storage import Trace, frame_of, read_trace, trace_of, write_json, write_trace
 from .models import monitor, reference
 from .models.common import inputs_from_trace
-from .report import (identification_summary, plot_calibration, plot_convergence, plot_fit, plot_trace,
-                     report_markdown, write_json)
-from .scenario import IdentifySettings, Scenario, load_any, load_scenario, parse_scenario
-from .storage import Trace, read_trace, write_trace
 
 Model = Literal["reference", "monitor"]
 
@@ -40,36 +52,50 @@ def check(paths: list[str | Path]) -> list[str]:
     return lines
 
 
-def scenario_parameters(scenario: Scenario, scenario_path: str | Path | None):
-    """The parameter set a scenario names, resolved next to its file."""
-    base = Path(scenario_path).parent if scenario_path is not None else None
-    return parameter_sets.load(scenario.parameters, relative_to=base)
+def _parameters(name_or_path: str | Path | None, named_by: str | None, relative_to: Path | None,
+                source: str | Path) -> Parameters:
+    """``--parameters`` when given (it overrides), else the set a scenario or trace names."""
+    if name_or_path is not None:
+        return parameter_sets.load(str(name_or_path), source="--parameters")
+    return parameter_sets.load(named_by or "default", relative_to=relative_to, source=source)
 
 
-def simulate_scenario(scenario: Scenario, params, model: Model = "reference",
-                      with_noise: bool = True, show_progress: bool = False) -> Trace:
+def _scenario(scenario: str | Path | Scenario | dict) -> tuple[Scenario, Path | None]:
+    """A scenario from a file, a model or a mapping, with the folder its paths are relative to."""
+    if isinstance(scenario, Scenario):
+        return scenario, None
+    if isinstance(scenario, dict):
+        return parse_scenario(scenario, "scenario"), None
+    path = Path(scenario)
+    return load_scenario(path), path.parent
+
+
+def simulate(scenario: str | Path | Scenario | dict, *, model: Model = "reference",
+             parameters: str | Path | None = None, noise: bool = True,
+             output: str | Path | None = None, plot: bool = False,
+             show_progress: bool = False) -> pd.DataFrame:
+    """Simulate a scenario on the Reference (default) or Monitor Model.
+
+    Returns the trace as a DataFrame (SPEC 4 columns; ``attrs["units"]`` per
+    column, ``attrs["emaprog"]`` the provenance). With ``output`` the trace is
+    also written there as Parquet (and with ``plot`` a PNG beside it).
+    ``parameters`` overrides the set the scenario names.
+    """
+    scenario, folder = _scenario(scenario)
+    params = _parameters(parameters, scenario.parameters, folder, "scenario")
     if model == "reference":
-        return reference.simulate(scenario, params, with_noise=with_noise,
-                                  show_progress=show_progress)
-    if model == "monitor":
-        return monitor.simulate(scenario, params)
-    raise InputError("--model", f"unknown model '{model}' (allowed: reference, monitor)")
+        trace = reference.simulate(scenario, params, with_noise=noise, show_progress=show_progress)
+    elif model == "monitor":
+        trace = monitor.simulate(scenario, params)
+    else:
+        raise InputError("--model", f"unknown model '{model}' (allowed: reference, monitor)")
+    if output is not None:
+        output = write_trace(output, trace)
+        if plot:
+            from .report import plot_trace
 
-
-def simulate(scenario_path: str | Path, output: str | Path | None = None,
-             model: Model = "reference", plot: bool = False,
-             show_progress: bool = True) -> tuple[Path, Path | None]:
-    """Simulate a scenario file and write its trace (and optional PNG beside it)."""
-    scenario = load_scenario(scenario_path)
-    params = scenario_parameters(scenario, scenario_path)
-    trace = simulate_scenario(scenario, params, model, show_progress=show_progress)
-    output = Path(output) if output else Path("out") / f"{scenario.name}-{model}.parquet"
-    write_trace(output, trace)
-    figure = None
-    if plot:
-        figure = plot_trace(trace, output.with_suffix(".png"),
-                            f"{scenario.name} ({model} model)")
-    return output, figure
+            plot_trace(trace, output.with_suffix(".png"), f"{scenario.name} ({model} model)")
+    return frame_of(trace)
 
 
 def _trace_scenario(trace: Trace, source: Path) -> Scenario | None:
@@ -80,42 +106,79 @@ def _trace_scenario(trace: Trace, source: Path) -> Scenario | None:
     return parse_scenario(data, f"{source} (embedded scenario)")
 
 
-def identify(trace_path: str | Path, scenario_path: str | Path | None = None,
-             output: str | Path | None = None, show_progress: bool = True,
-             inspection: dict | None = None) -> tuple[dict, Path]:
-    """Identify the faults in a measured trace and write report.json, report.md and figures.
+@dataclass(frozen=True)
+class Report:
+    """An identification's result: the SPEC 5 keys, typed, and the whole ``report.json``."""
 
-    Settings and parameter set come from ``scenario_path`` when given, else
-    from the scenario embedded in the trace, else the defaults. Truth and error
-    are reported when the trace carries its scenario (a simulated trace).
+    estimate: dict[str, Any]  # SPEC 5 shape: {"friction": x, "short_circuit": {"a": x, ..}, ..}
+    truth: dict[str, Any] | None  # same shape, for a simulated trace
+    error: dict[str, Any] | None
+    health: dict[str, str]  # fault -> nominal | incipient | degraded
+    fitness: float
+    evaluations: int
+    elapsed_s: float
+    seed: int
+    settings: dict[str, Any]
+    emaprog_version: str
+    data: dict[str, Any]  # everything report.json holds
+    folder: Path | None  # where report.json, report.md and the figures are, if written
+
+    @classmethod
+    def from_data(cls, data: dict[str, Any], folder: Path | None = None) -> "Report":
+        keys = ("estimate", "truth", "error", "health", "fitness", "evaluations", "elapsed_s",
+                "seed", "settings", "emaprog_version")
+        return cls(**{k: data[k] for k in keys}, data=data, folder=folder)
+
+
+def _trace_scenario(trace: Trace, source: str | Path) -> Scenario | None:
+    """The scenario a trace made by ``simulate`` carries in its metadata, if any."""
+    data = (trace.metadata or {}).get("scenario")
+    if data is None:
+        return None
+    return parse_scenario(data, f"{source} (embedded scenario)")
+
+
+def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = None,
+             parameters: str | Path | None = None, output: str | Path | None = None,
+             inspection: dict | None = None, show_progress: bool = False) -> Report:
+    """Identify the faults in a measured trace (a Parquet path or a DataFrame).
+
+    Settings come from ``scenario`` when given, else from the scenario embedded in
+    the trace, else the defaults; the parameter set from ``parameters`` when given
+    (it overrides), else from that same scenario, else ``default``. Truth and
+    error are reported when the trace carries its scenario (a simulated trace).
     ``inspection`` ({"actuator": ID, "usage": hours}) tags the report for
-    ``emaprog trend``.
+    ``emaprog trend``. With ``output``, report.json, report.md and the figures
+    are written there.
     """
-    trace_path = Path(trace_path)
-    trace = read_trace(trace_path)
-    embedded = _trace_scenario(trace, trace_path)
-    scenario = load_scenario(scenario_path) if scenario_path is not None else None
-    if scenario is not None:
-        params = scenario_parameters(scenario, scenario_path)
-    elif embedded is not None:
-        params = parameter_sets.load(embedded.parameters, relative_to=trace_path.parent,
-                                     source=f"{trace_path} (embedded scenario)")
+    if isinstance(trace, pd.DataFrame):
+        source: str | Path = "trace (DataFrame)"
+        measured = trace_of(trace, source)
     else:
-        params = parameter_sets.load("default")
-    basis = scenario or embedded
+        source = Path(trace)
+        measured = read_trace(source)
+    embedded = _trace_scenario(measured, source)
+    chosen = load_scenario(scenario) if scenario is not None else None
+    basis = chosen or embedded
+    if chosen is not None:
+        params = _parameters(parameters, chosen.parameters, Path(scenario).parent, scenario)
+    else:
+        relative = source.parent if isinstance(source, Path) else None
+        params = _parameters(parameters, embedded.parameters if embedded else None, relative,
+                             f"{source} (embedded scenario)")
     settings = basis.identify if basis is not None else IdentifySettings()
-    check_sampling(trace, params, str(trace_path))
-    inp = inputs_from_trace(trace, basis.load if basis is not None else None)
-    result = identify_trace(trace, inp, params, settings, show_progress=show_progress)
+    check_sampling(measured, params, str(source))
+    inp = inputs_from_trace(measured, basis.load if basis is not None else None)
+    result = identify_trace(measured, inp, params, settings, show_progress=show_progress)
 
     truth = flatten(embedded.faults) if embedded is not None else None
     error = verdicts.errors(result.estimate, truth) if truth is not None else None
-    report = {
+    data = {
         "estimate": nested(result.estimate),
         "truth": nested(truth) if truth is not None else None,
         "error": nested(error) if error is not None else None,
         "health": verdicts.health(result.estimate, settings.estimate, params),
-        "short_circuit_phase": worst_phase(result.estimate),
+        f"{PHASE_FAULT}_phase": worst_phase(result.estimate),
         "fitness": result.fitness,
         "ga": {"estimate": nested(result.ga_estimate), "fitness": result.ga_fitness,
                "generations": result.generations, "stopped_by": result.stopped_by,
@@ -124,63 +187,95 @@ def identify(trace_path: str | Path, scenario_path: str | Path | None = None,
         "elapsed_s": result.elapsed_s,
         "seed": settings.ga.seed,
         "settings": settings.model_dump(mode="json"),
-        "trace": str(trace_path),
+        "trace": str(source),
         "scenario": basis.name if basis is not None else None,
         "parameters": params.source_file,
         "inspection": inspection,
         "emaprog_version": __version__,
     }
-    folder = Path(output) if output else Path("out") / f"{trace_path.stem}-report"
+    if output is None:
+        return Report.from_data(data)
+    from .report import plot_convergence, plot_fit, report_markdown
+
+    folder = Path(output)
     folder.mkdir(parents=True, exist_ok=True)
     identified = result.objective.simulate(result.estimate)
     figures = {
-        "fit": plot_fit(trace, identified, result.objective.filter_width, folder / "fit.png"),
+        "fit": plot_fit(measured, identified, result.objective.filter_width, folder / "fit.png"),
         "convergence": plot_convergence(result.logbook, folder / "convergence.png"),
     }
-    report["figures"] = {name: path.name for name, path in figures.items()}
-    write_json(folder / "report.json", report)
-    (folder / "report.md").write_text(report_markdown(report))
-    return report, folder
+    data["figures"] = {name: path.name for name, path in figures.items()}
+    write_json(folder / "report.json", data)
+    (folder / "report.md").write_text(report_markdown(data))
+    return Report.from_data(data, folder)
 
 
-def verdict_text(report: dict) -> str:
+def verdict_text(report: Report) -> str:
     """A few lines a person reads on the terminal after ``identify``."""
-    return identification_summary(report)
+    from .report import identification_summary
+
+    return identification_summary(report.data)
 
 
-def calibrate(parameters: str | Path = "default", output: str | Path | None = None,
-              write: bool = True) -> tuple[dict, Path]:
-    """Fit the Monitor's nominal equivalents and Z-zeta gain; write calibration.json + figure.
+@dataclass(frozen=True)
+class Calibration:
+    """A calibration's result (SPEC 7): the ``calibration.json`` content and the calibrated set."""
 
-    With ``write`` the calibrated values go into the parameter file itself.
+    eccentricity_gain: float  # [-] c of Z = c zeta
+    r_squared: float
+    commutation_loss: float  # [s/rad]
+    signature_error: dict[str, float]  # per fault (SPEC 1)
+    parameter_set: Path  # the calibrated, complete parameter set (parameters.yaml)
+    data: dict[str, Any]
+    folder: Path
+
+
+def calibrate(parameters: str | Path = "default", output: str | Path = Path("out") / "calibration",
+              ) -> Calibration:
+    """Fit the Monitor's nominal equivalents and Z-zeta gain to the Reference Model (SPEC 7).
+
+    Writes ``calibration.json``, ``z_vs_zeta.png`` and ``parameters.yaml`` (the input
+    set with the calibrated monitor values and a ``changes`` record: complete and
+    loadable wherever a set is accepted) into ``output``. The input set is never
+    modified; to ship the calibrated values, copy ``parameters.yaml`` over the
+    shipped file (docs/reference.md, "Calibration").
     """
-    from . import calibration
+    import datetime
 
-    params = parameter_sets.load(str(parameters))
+    from .fitting import calibration
+    from .report import plot_calibration
+
+    params = parameter_sets.load(str(parameters), source="--parameters")
     result = calibration.calibrate(params)
-    folder = Path(output) if output else Path("out") / "calibration"
+    folder = Path(output)
     folder.mkdir(parents=True, exist_ok=True)
     result["figure"] = plot_calibration(result, folder / "z_vs_zeta.png").name
     result["emaprog_version"] = __version__
+    today = datetime.date.today().isoformat()
+    (folder / "parameters.yaml").write_text(
+        calibration.calibrated_set(params.source_file, result, today))
+    result["parameter_set"] = "parameters.yaml"
     write_json(folder / "calibration.json", result)
-    if write:
-        calibration.write_into(params.source_file, result)
-    return result, folder
+    return Calibration(result["eccentricity_gain"], result["r_squared"], result["commutation_loss"],
+                       result["signature_error"], folder / "parameters.yaml", result, folder)
 
 
 class SweepOutcome(NamedTuple):
+    """A campaign's result: its folder, summary.json content, case table and this run's counts."""
+
     folder: Path
     summary: dict
     ran: int  # cases run by this call (finished or failed)
     skipped: int  # cases already finished by an earlier run (--resume)
     failed: int  # cases without a result (see RESULTS_DIR/failures/)
     regressions: list[str]  # figures worse than --baseline beyond their tolerance
+    cases: pd.DataFrame  # one row per finished case (SPEC 6 columns)
 
 
 def _read_baseline(path: Path) -> dict:
     import json
 
-    from .campaign_summary import regression_figures
+    from .campaign.summary import regression_figures
 
     if not path.is_file():
         raise InputError(path, "baseline file not found (give a summary.json of an earlier sweep)")
@@ -197,16 +292,16 @@ def _read_baseline(path: Path) -> dict:
 
 def sweep(campaign_path: str | Path, output: str | Path | None = None, workers: int | None = None,
           scheduler: str | None = None, resume: bool = False, baseline: str | Path | None = None,
-          show_progress: bool = True) -> SweepOutcome:
+          show_progress: bool = False) -> SweepOutcome:
     """Run (or resume) a Monte-Carlo campaign and write its case dataset and summary (SPEC 6).
 
     Cases run on ``workers`` local processes (default: all cores; 1 runs them in
     this process) or, with ``scheduler``, on a Dask cluster. Each finished case
-    is on disk at once; Ctrl-C raises :class:`emaprog.campaign.Interrupted`
+    is on disk at once; Ctrl-C raises :class:`emaprog.campaign.cases.Interrupted`
     after stopping the workers. With ``baseline`` the summary is compared with an earlier one.
     """
-    from . import campaign as campaigns
-    from .scenario import load_campaign
+    from .campaign import cases as campaigns
+    from .config.scenario import load_campaign
 
     campaign_path = Path(campaign_path)
     campaign, base = load_campaign(campaign_path)
@@ -225,8 +320,8 @@ def _sweep(campaign_path: Path, campaign, base, params, output, workers, client,
            baseline, reference_summary, show_progress) -> SweepOutcome:
     import time
 
-    from . import campaign as campaigns
-    from .campaign_summary import ACCURACY, compare, error_values, markdown, summarize
+    from .campaign import cases as campaigns
+    from .campaign.summary import ACCURACY, compare, error_values, markdown, summarize
     from .report import plot_error_histograms, plot_parity
 
     digest = campaigns.campaign_hash(campaign, base, params)
@@ -270,7 +365,7 @@ def _sweep(campaign_path: Path, campaign, base, params, output, workers, client,
     write_json(folder / "summary.json", summary)
     (folder / "summary.md").write_text(markdown(summary))
     return SweepOutcome(folder, summary, counts["done"] + counts["failed"], len(finished),
-                        summary["failed"], regressions)
+                        summary["failed"], regressions, frame)
 
 
 def _history_source(history_path: Path, simulate: bool) -> str:
@@ -292,22 +387,32 @@ def _history_source(history_path: Path, simulate: bool) -> str:
                      "a synthetic history YAML with --simulate")
 
 
+@dataclass(frozen=True)
+class Trend:
+    """A prognosis: per fault its growth law, detection and RUL (``trend.json`` is ``data``)."""
+
+    actuator: str
+    faults: dict[str, dict[str, Any]]  # fault -> status, law, rul {median, low, high} [h], ...
+    data: dict[str, Any]
+    folder: Path
+
+
 def trend(history_path: str | Path, output: str | Path | None = None, simulate: bool = False,
           law: str = "auto", parameters: str = "default", workers: int | None = None,
-          resume: bool = False, show_progress: bool = True) -> tuple[dict, Path]:
+          resume: bool = False, show_progress: bool = False) -> Trend:
     """Fit each fault's growth over usage and predict its remaining useful life.
 
     ``history_path`` is a Parquet table, a folder of ``report.json`` files, or
     (with ``simulate``) a synthetic history YAML whose inspections are simulated
     and identified first, resumably, under ``OUTPUT/inspections/``. Writes
-    ``trend.json``, ``trend.md`` and ``trend.png``; see :mod:`emaprog.prognosis`.
+    ``trend.json``, ``trend.md`` and ``trend.png``; see :mod:`emaprog.prognosis.fit`.
     """
-    from . import campaign as campaigns
-    from . import history as histories
-    from .prognosis import LAWS
+    from .campaign import cases as campaigns
+    from .prognosis import history as histories
+    from .prognosis.fit import LAWS
     from .report import plot_trend, trend_markdown
-    from .scenario import load_history
-    from .trend import analyse
+    from .config.scenario import load_history
+    from .prognosis.analysis import analyse
 
     if law not in ("auto", *LAWS):
         raise InputError("--law", f"unknown law '{law}' (allowed: auto, {', '.join(LAWS)})")
@@ -342,4 +447,4 @@ def trend(history_path: str | Path, output: str | Path | None = None, simulate: 
     result["figure"] = plot_trend(result, folder / "trend.png").name
     write_json(folder / "trend.json", result)
     (folder / "trend.md").write_text(trend_markdown(result))
-    return result, folder
+    return Trend(result["actuator"], result["faults"], result, folder)

@@ -36,6 +36,11 @@ ScenarioOption = Annotated[
 ParametersOption = Annotated[
     str, typer.Option("--parameters", "-p", help="Parameter set: shipped name or path to a YAML file.")
 ]
+ParametersOverride = Annotated[
+    Optional[str], typer.Option(
+        "--parameters", "-p",
+        help="Parameter set (shipped name or YAML path); overrides the set the scenario or trace names.")
+]
 
 
 def _fail(code: int, message: str) -> None:
@@ -104,16 +109,20 @@ def simulate(
     output: Annotated[Optional[Path], typer.Option("--output", "-o", help="Trace Parquet to write.")] = None,
     model: Annotated[str, typer.Option("--model", "-m", help="reference | monitor")] = "reference",
     plot: Annotated[bool, typer.Option("--plot", help="Also write a PNG beside the trace.")] = False,
+    parameters: ParametersOverride = None,
 ):
     """Simulate a scenario on the Reference (default) or Monitor Model and write its trace."""
     from . import api
+    from .config.scenario import load_scenario
 
     if model not in ("reference", "monitor"):
         raise InputError("--model", f"unknown model '{model}' (allowed: reference, monitor)")
-    path, figure = api.simulate(scenario, output, model, plot)
-    typer.echo(f"trace: {path}")
-    if figure:
-        typer.echo(f"plot: {figure}")
+    output = output or Path("out") / f"{load_scenario(scenario).name}-{model}.parquet"
+    api.simulate(scenario, model=model, parameters=parameters, output=output, plot=plot,
+                 show_progress=True)
+    typer.echo(f"trace: {output}")
+    if plot:
+        typer.echo(f"plot: {output.with_suffix('.png')}")
 
 
 @app.command(epilog="Example: emaprog identify out/fig10.parquet -o out/fig10-report")
@@ -126,6 +135,7 @@ def identify(
         "--actuator", help="Actuator the trace was recorded on (for `emaprog trend`).")] = None,
     usage: Annotated[Optional[float], typer.Option(
         "--usage", min=0.0, help="Its usage at the recording [flight hours] (for `emaprog trend`).")] = None,
+    parameters: ParametersOverride = None,
 ):
     """Identify fault magnitudes in a measured trace with the GA over the Monitor Model."""
     from . import api
@@ -134,26 +144,31 @@ def identify(
         raise InputError("--actuator/--usage", "give both (an inspection of one actuator at one "
                          "usage) or neither")
     inspection = {"actuator": actuator, "usage": usage} if actuator is not None else None
-    report, folder = api.identify(trace, scenario, output, inspection=inspection)
+    report = api.identify(trace, scenario=scenario, parameters=parameters,
+                          output=output or Path("out") / f"{trace.stem}-report",
+                          inspection=inspection, show_progress=True)
     typer.echo(api.verdict_text(report))
-    typer.echo(f"report: {folder / 'report.md'}")
+    typer.echo(f"report: {report.folder / 'report.md'}")
 
 
 @app.command(epilog="Example: emaprog calibrate -o out/calibration")
 @guarded
-def calibrate(parameters: ParametersOption = "default", output: OutputDir = None,
-              write: Annotated[bool, typer.Option("--write/--no-write",
-                               help="Store the calibrated values in the parameter set.")] = True):
-    """Fit the Monitor Model's equivalents and eccentricity gain to the Reference Model."""
+def calibrate(parameters: ParametersOption = "default", output: OutputDir = None):
+    """Fit the Monitor Model's equivalents and eccentricity gain to the Reference Model.
+
+    Writes calibration.json, a figure and the calibrated parameter set (parameters.yaml)
+    into the output folder; the input set is never modified.
+    """
     from . import api
 
-    result, folder = api.calibrate(parameters, output, write)
-    typer.echo(f"eccentricity_gain c = {result['eccentricity_gain']:.4f} "
-               f"(r^2 = {result['r_squared']:.4f}); commutation_loss = "
-               f"{result['commutation_loss']:.3e} s/rad")
-    errors = ", ".join(f"{k} {v:.2f}" for k, v in result["signature_error"].items())
+    result = api.calibrate(parameters, output or Path("out") / "calibration")
+    typer.echo(f"eccentricity_gain c = {result.eccentricity_gain:.4f} "
+               f"(r^2 = {result.r_squared:.4f}); commutation_loss = "
+               f"{result.commutation_loss:.3e} s/rad")
+    errors = ", ".join(f"{k} {v:.2f}" for k, v in result.signature_error.items())
     typer.echo(f"signature errors: {errors}")
-    typer.echo(f"calibration: {folder / 'calibration.json'}")
+    typer.echo(f"calibration: {result.folder / 'calibration.json'}; calibrated set: "
+               f"{result.parameter_set}")
 
 
 @app.command(epilog="Example: emaprog trend configs/history-demo.yaml --simulate -o out/demo-trend")
@@ -174,15 +189,16 @@ def trend(
     """Fit fault growth over usage and predict the remaining useful life (prognosis)."""
     from . import api
 
-    result, folder = api.trend(history, output, simulate, law, parameters, workers, resume)
-    for fault, entry in result["faults"].items():
+    result = api.trend(history, output, simulate, law, parameters, workers, resume,
+                       show_progress=True)
+    for fault, entry in result.faults.items():
         rul = entry["rul"]
         text = ("not detected" if entry["status"] == "not detected" else
                 "beyond horizon" if rul["median"] is None else
                 f"{rul['median']:.0f} h (90 %: {rul['low']:.0f} - "
                 + ("beyond horizon" if rul["high"] is None else f"{rul['high']:.0f} h") + ")")
         typer.echo(f"{fault:14s} {entry['law'] or '-':11s} RUL {text}")
-    typer.echo(f"trend: {folder / 'trend.md'}")
+    typer.echo(f"trend: {result.folder / 'trend.md'}")
 
 
 @app.command(epilog="Example: emaprog sweep campaigns/quick.yaml -o out/quick --workers 2")
@@ -201,7 +217,7 @@ def sweep(
     """Run a Monte-Carlo campaign of simulate + identify cases (resumable)."""
     from . import api
 
-    outcome = api.sweep(campaign, output, workers, scheduler, resume, baseline)
+    outcome = api.sweep(campaign, output, workers, scheduler, resume, baseline, show_progress=True)
     s = outcome.summary
     typer.echo(f"cases: {s['finished']} of {s['planned']} finished ({outcome.ran} run now, "
                f"{outcome.skipped} from earlier runs), {outcome.failed} failed")

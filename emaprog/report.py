@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import json
-import os
 from pathlib import Path
 
 import matplotlib
@@ -12,7 +10,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .storage import Trace  # noqa: E402
+from .faults import CATALOGUE, FAULTS, PHASE_FAULT, QUANTITIES, Quantity  # noqa: E402
+from .io.storage import Trace  # noqa: E402
 
 
 def plot_trace(trace: Trace, path: str | Path, title: str = "") -> Path:
@@ -41,15 +40,6 @@ def plot_trace(trace: Trace, path: str | Path, title: str = "") -> Path:
     path = Path(path)
     fig.savefig(path, dpi=110)
     plt.close(fig)
-    return path
-
-
-def write_json(path: str | Path, data: dict) -> Path:
-    """Write JSON atomically (temporary name, then rename)."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(json.dumps(data, indent=2, default=float) + "\n")
-    os.replace(tmp, path)
     return path
 
 
@@ -93,15 +83,15 @@ def plot_convergence(logbook: list[dict], path: str | Path) -> Path:
     return Path(path)
 
 
-ROWS = (  # (label, path in the nested report shape, unit, format)
-    ("friction multiplier", ("friction",), "-", "{:.3f}"),
-    ("backlash", ("backlash",), "rad", "{:.2e}"),
-    ("short circuit A", ("short_circuit", "a"), "-", "{:.3f}"),
-    ("short circuit B", ("short_circuit", "b"), "-", "{:.3f}"),
-    ("short circuit C", ("short_circuit", "c"), "-", "{:.3f}"),
-    ("eccentricity zeta", ("eccentricity", "zeta"), "-", "{:.3f}"),
-    ("eccentricity phase", ("eccentricity", "phase"), "rad", "{:.2f}"),
-)
+def _row(q: Quantity) -> tuple[str, tuple[str, ...], str, str]:
+    """(label, path in the nested report shape, unit, format) of one quantity."""
+    fault = next(f for f in CATALOGUE if q in f.quantities)
+    path = (fault.name,) if q.key is None else (fault.name, q.key)
+    fmt = "{:.2f}" if q.circular else ("{:.2e}" if q.unit == "rad" else "{:.3f}")
+    return q.label, path, q.unit, fmt
+
+
+ROWS = tuple(_row(q) for q in QUANTITIES.values())
 
 
 def _pick(tree: dict | None, keys: tuple[str, ...]):
@@ -119,9 +109,9 @@ def _fmt(value, fmt: str) -> str:
 def identification_summary(report: dict) -> str:
     health = ", ".join(f"{fault} {verdict}" for fault, verdict in report["health"].items())
     lines = [f"health: {health}"]
-    phase = report.get("short_circuit_phase")
-    if report["health"].get("short_circuit", "nominal") != "nominal" and phase:
-        lines.append(f"short circuit on phase {phase.upper()}")
+    phase = report.get(f"{PHASE_FAULT}_phase")
+    if report["health"].get(PHASE_FAULT, "nominal") != "nominal" and phase:
+        lines.append(f"{FAULTS[PHASE_FAULT].label} on phase {phase.upper()}")
     for label, keys, unit, fmt in ROWS:
         est = _fmt(_pick(report["estimate"], keys), fmt)
         line = f"  {label:20s} {est:>10s} {unit}"
@@ -157,7 +147,7 @@ Trace `{report['trace']}`, parameter set `{report['parameters']}`, emaprog {repo
 |---|---|
 {health}
 
-Faulty phase (largest shorted fraction): {report['short_circuit_phase'] or 'none'}.
+Faulty phase (largest shorted fraction): {report[f'{PHASE_FAULT}_phase'] or 'none'}.
 
 ## Estimates
 
@@ -195,15 +185,7 @@ def plot_calibration(result: dict, path: str | Path) -> Path:
     return Path(path)
 
 
-QUANTITY_LABELS = {
-    "friction": "friction multiplier [-]",
-    "backlash": "backlash [rad]",
-    "short_circuit_a": "short circuit A [-]",
-    "short_circuit_b": "short circuit B [-]",
-    "short_circuit_c": "short circuit C [-]",
-    "eccentricity_zeta": "eccentricity zeta [-]",
-    "eccentricity_phase": "eccentricity phase [rad]",
-}
+QUANTITY_LABELS = {name: f"{q.label} [{q.unit}]" for name, q in QUANTITIES.items()}
 
 
 def plot_parity(frame, path: str | Path) -> Path:
@@ -242,7 +224,8 @@ def plot_error_histograms(errors: dict[str, np.ndarray], tolerances: dict[str, f
             for x in (-bar, bar):
                 ax.axvline(x, color="tab:red", ls="--", lw=0.9)
         ax.set_title(QUANTITY_LABELS[quantity].replace("[-]", "error").replace("[rad]", "error [rad]")
-                     + (" (rel.)" if quantity == "friction" else ""), fontsize=9)
+                     + (" (rel.)" if QUANTITIES[quantity].measure == "relative" else ""),
+                     fontsize=9)
         ax.set_ylabel("cases", fontsize=8)
         ax.tick_params(labelsize=7)
         ax.grid(True, alpha=0.3)
@@ -253,17 +236,12 @@ def plot_error_histograms(errors: dict[str, np.ndarray], tolerances: dict[str, f
     return Path(path)
 
 
-SEVERITY_LABELS = {
-    "friction": "friction |k_f - 1| [-]",
-    "backlash": "backlash [rad]",
-    "short_circuit": "short circuit, worst phase [-]",
-    "eccentricity": "eccentricity zeta [-]",
-}
+SEVERITY_LABELS = {f.name: f.severity for f in CATALOGUE}
 
 
 def plot_trend(result: dict, path: str | Path) -> Path:
     """Estimated severity vs usage per fault: fit, failure threshold, RUL interval, truth."""
-    from .prognosis import growth
+    from .prognosis.fit import growth
 
     usage = np.array(result["usage"])
     fig, axes = plt.subplots(2, 2, figsize=(12, 7.5))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .scenario import (
+from .config.scenario import (
     ChirpCommand, ConstantCommand, ConstantLoad, NoLoad, RampCommand, SineCommand, SpringLoad,
     StepCommand,
 )

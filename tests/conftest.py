@@ -8,12 +8,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from emaprog import parameters
+from emaprog.config import parameters
 from emaprog.faults import HEALTHY, MonitorFaults, flatten, monitor_form, reference_form
 from emaprog.kernels.monitor import moving_average
 from emaprog.models import monitor, reference
 from emaprog.models.common import inputs
-from emaprog.scenario import load_scenario
+from emaprog.config.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIGS = ROOT / "configs"

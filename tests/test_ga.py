@@ -75,7 +75,7 @@ def test_stagnation_stops_early_and_logbook_is_monotone():
 def test_samples_above_the_fit_speed_limit_and_the_start_up_are_left_out(params):
     """identify.max_speed: the error counts only samples the Monitor is trusted at."""
     from emaprog.identification.objective import fit_speed_limit, sample_weights
-    from emaprog.scenario import IdentifySettings
+    from emaprog.config.scenario import IdentifySettings
 
     e = params.spec.electrical
     default = fit_speed_limit(IdentifySettings(), params)

@@ -26,9 +26,9 @@ pytestmark = pytest.mark.slow
 def twin(name: str, tmp: str) -> dict:
     from pathlib import Path
 
-    trace, _ = api.simulate(CONFIGS / f"{name}.yaml", Path(tmp) / f"{name}.parquet")
-    report, _ = api.identify(trace, None, Path(tmp) / f"{name}-report", show_progress=False)
-    return report
+    trace = Path(tmp) / f"{name}.parquet"
+    api.simulate(CONFIGS / f"{name}.yaml", output=trace)
+    return api.identify(trace, output=Path(tmp) / f"{name}-report").data
 
 
 @pytest.fixture(scope="module")

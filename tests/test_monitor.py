@@ -5,15 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from emaprog.calibration import SIGNATURE_FAULTS
+from emaprog.fitting.calibration import SIGNATURE_FAULTS
 from emaprog.faults import HEALTHY, monitor_form, values_of
 from emaprog.identification.objective import Objective
 from emaprog.kernels.monitor import ECCENTRICITY_PAIR, SHORT_CIRCUIT_AVERAGED, short_circuit_factors
 from emaprog.models.common import inputs
-from emaprog.scenario import IdentifySettings
-from emaprog.storage import Trace
+from emaprog.config.scenario import IdentifySettings
+from emaprog.io.storage import Trace
 
-from .conftest import MONITOR_HEALTHY, low_pass, monitor_run, nrmse, reference_run, scenario
+from .conftest import ROOT, MONITOR_HEALTHY, low_pass, monitor_run, nrmse, reference_run, scenario
 
 FIG10 = SIGNATURE_FAULTS  # kernel form at the paper's Fig. 10 levels (RM: zeta; MM: Z = c zeta)
 
@@ -158,25 +158,50 @@ def test_error_surface_has_its_minimum_at_the_truth(params, quantity, truth, spa
     assert fitness[0] > 1.5 * fitness.min() and fitness[-1] > 1.5 * fitness.min()
 
 
-def test_calibrate_finds_a_linear_z_zeta_law(tmp_path):
-    """SPEC 7: Z = c zeta with r^2 >= 0.95; every fault signature within 0.35; nothing written."""
+def test_calibrate_finds_a_linear_z_zeta_law_and_never_edits_its_input(tmp_path):
+    """SPEC 7: Z = c zeta with r^2 >= 0.95; every fault signature within 0.35.
+
+    ``calibrate --parameters mine.yaml`` leaves mine.yaml byte for byte as it was
+    and writes a complete set with the calibrated values that ``simulate --model
+    monitor`` loads.
+    """
+    import json
+    import shutil
+
+    import yaml
     from typer.testing import CliRunner
 
+    from emaprog.config import parameters
     from emaprog.cli import app
-    from emaprog.parameters import builtin_dir
 
-    shipped = (builtin_dir() / "default.yaml").read_text()
-    result = CliRunner().invoke(app, ["calibrate", "-o", str(tmp_path), "--no-write"])
+    mine = tmp_path / "mine.yaml"
+    shutil.copy(parameters.builtin_dir() / "default.yaml", mine)
+    before = mine.read_bytes()
+    shipped = (parameters.builtin_dir() / "default.yaml").read_bytes()
+    out = tmp_path / "cal"
+    result = CliRunner().invoke(app, ["calibrate", "--parameters", str(mine), "-o", str(out)])
     assert result.exit_code == 0, result.output
-    import json
+    assert mine.read_bytes() == before
+    assert (parameters.builtin_dir() / "default.yaml").read_bytes() == shipped
 
-    cal = json.loads((tmp_path / "calibration.json").read_text())
+    cal = json.loads((out / "calibration.json").read_text())
     assert cal["r_squared"] >= 0.95
     assert 0.4 < cal["eccentricity_gain"] < 0.6  # theory for the pair shape: 0.5
-    assert 0.0 < cal["commutation_loss"] < 2e-4
+    assert 0.0 <= cal["commutation_loss"] < 2e-4
     assert max(cal["signature_error"].values()) < 0.35
-    assert (tmp_path / "z_vs_zeta.png").stat().st_size > 5000
-    assert (builtin_dir() / "default.yaml").read_text() == shipped
+    assert (out / "z_vs_zeta.png").stat().st_size > 5000
+
+    written = parameters.load(str(out / "parameters.yaml"))
+    assert written.spec.monitor.eccentricity_gain == pytest.approx(cal["eccentricity_gain"], abs=1e-4)
+    assert written.spec.monitor.commutation_loss == pytest.approx(cal["commutation_loss"], rel=1e-3)
+    assert "written by `emaprog calibrate`" in written.spec.changes[-1]
+    scenario = yaml.safe_load((ROOT / "configs" / "chirp-nominal.yaml").read_text())
+    scenario.update(parameters=str(out / "parameters.yaml"), duration=0.05)
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(scenario))
+    result = CliRunner().invoke(app, ["simulate", str(tmp_path / "s.yaml"), "--model", "monitor",
+                                      "-o", str(tmp_path / "t.parquet")])
+    assert result.exit_code == 0, result.output
+    assert (tmp_path / "t.parquet").stat().st_size > 1000
 
 
 def test_pair_eccentricity_law_is_the_reference_law_on_the_active_pair():

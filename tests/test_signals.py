@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from emaprog import signals
-from emaprog.scenario import (ChirpCommand, ConstantLoad, NoLoad, RampCommand, SineCommand,
+from emaprog.config.scenario import (ChirpCommand, ConstantLoad, NoLoad, RampCommand, SineCommand,
                               SpringLoad, StepCommand)
 
 

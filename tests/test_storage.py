@@ -7,7 +7,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from emaprog.errors import InputError
-from emaprog.storage import COLUMNS, Trace, column_units, read_trace, write_trace
+from emaprog.io.storage import COLUMNS, Trace, column_units, read_trace, write_trace
 
 
 def make_trace(n=50, metadata=None):

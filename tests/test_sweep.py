@@ -22,10 +22,14 @@ import pytest
 import yaml
 from typer.testing import CliRunner
 
-from emaprog import api, campaign as campaigns, parameters
-from emaprog.campaign_summary import compare, summarize
+from emaprog import api
+
+from emaprog.campaign import cases as campaigns
+
+from emaprog.config import parameters
+from emaprog.campaign.summary import compare, summarize
 from emaprog.cli import app
-from emaprog.scenario import load_campaign
+from emaprog.config.scenario import load_campaign
 
 from .conftest import ROOT
 
@@ -325,3 +329,15 @@ def test_no_healthy_actuator_is_flagged_faulty(tmp_path):
                         show_progress=False)
     alarms = outcome.summary["false_alarms"]
     assert alarms["healthy_cases"] == 20 and alarms["flagged"] == 0, alarms
+
+
+def test_sweep_workers_import_no_plotting_library():
+    """A worker process imports the case runner (and the CLI module, as spawn does):
+    neither may pull in matplotlib, which costs every worker start-up time and memory."""
+    import subprocess
+    import sys
+
+    code = ("import sys, emaprog.cli, emaprog.campaign.cases; "
+            "print(sorted(m for m in sys.modules if m.split('.')[0] == 'matplotlib'))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]", out.stdout

@@ -18,9 +18,9 @@ import yaml
 from typer.testing import CliRunner
 
 from emaprog.cli import app
-from emaprog.history import HistoryTable
-from emaprog.prognosis import crossing, growth, predict, prognostic_horizon, relative_accuracy
-from emaprog.trend import analyse
+from emaprog.prognosis.history import HistoryTable
+from emaprog.prognosis.fit import crossing, growth, predict, prognostic_horizon, relative_accuracy
+from emaprog.prognosis.analysis import analyse
 
 runner = CliRunner()
 USAGE = np.arange(0.0, 2001.0, 250.0)  # [h] nine inspections

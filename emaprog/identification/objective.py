@@ -33,9 +33,9 @@ from ..kernels.structs import ErrorTarget, unit_row
 from ..models import monitor, reference
 from ..models.common import Inputs
 from ..numerics import DEFAULT, Numerics
-from ..parameters import Parameters
-from ..scenario import IdentifySettings
-from ..storage import Trace
+from ..config.parameters import Parameters
+from ..config.scenario import IdentifySettings
+from ..io.storage import Trace
 
 FILTER_SECONDS = 1e-3  # [s] moving-average window of the error function
 STARTUP_SECONDS = 0.01  # [s] left out of the error: initial transient of the loops

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 
 from ..faults import CATALOGUE, severity
-from ..parameters import Parameters
+from ..config.parameters import Parameters
 
 VERDICTS = ("nominal", "incipient", "degraded")
 

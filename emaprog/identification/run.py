@@ -10,11 +10,12 @@ from scipy.optimize import minimize as local_minimize
 
 from .. import progress
 from ..errors import InputError
+from ..faults import CATALOGUE, FAULTS, PHASE_FAULT
 from ..models.common import Inputs
 from ..numerics import DEFAULT, Numerics
-from ..parameters import Parameters
-from ..scenario import IdentifySettings
-from ..storage import Trace
+from ..config.parameters import Parameters
+from ..config.scenario import IdentifySettings
+from ..io.storage import Trace
 from .ga import GAOptions, minimize
 from .objective import Objective, nominal_discrepancy
 
@@ -55,8 +56,8 @@ class PolishCoordinates:
 
     def __init__(self, objective: Objective):
         names = [g.quantity for g in objective.genes]
-        self.pair = ((names.index("eccentricity_zeta"), names.index("eccentricity_phase"))
-                     if "eccentricity_zeta" in names else None)
+        polar = [tuple(q.name for q in f.quantities) for f in CATALOGUE if f.layout == "polar"]
+        self.pair = next(((names.index(m), names.index(a)) for m, a in polar if m in names), None)
         self.bounds = [(-1.0, 1.0) if self.pair and j in self.pair else (0.0, 1.0)
                        for j in range(len(names))]
 
@@ -89,15 +90,15 @@ def single_phase_starts(objective: Objective, genes: np.ndarray) -> list[np.ndar
     the short circuit is not estimated or already on one phase.
     """
     values = objective.values(genes)
-    fractions = {x: values[f"short_circuit_{x}"] for x in "abc"}
+    phases = [q.name for q in FAULTS[PHASE_FAULT].quantities]
+    fractions = {name: values[name] for name in phases}
     worst = max(fractions, key=fractions.get)
-    if "short_circuit_a" not in {g.quantity for g in objective.genes} or \
+    if phases[0] not in {g.quantity for g in objective.genes} or \
             sum(v > 0 for v in fractions.values()) <= 1:
         return []
     candidates = []
     for level in (fractions[worst], sum(fractions.values())):
-        moved = {**values, **{f"short_circuit_{x}": 0.0 for x in "abc"},
-                 f"short_circuit_{worst}": level}
+        moved = {**values, **{name: 0.0 for name in phases}, worst: level}
         candidates.append(objective.genes_for(moved))
     fitness = objective(np.array(candidates))
     return [candidates[int(np.argmin(fitness))]]

@@ -8,8 +8,8 @@ import numpy as np
 
 from .. import __version__, signals
 from ..kernels.structs import Drive
-from ..parameters import Parameters
-from ..scenario import Scenario
+from ..config.parameters import Parameters
+from ..config.scenario import Scenario
 
 
 class Inputs(NamedTuple):

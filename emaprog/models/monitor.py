@@ -11,9 +11,9 @@ from ..kernels.monitor import (
 )
 from ..kernels.structs import MonitorOptions, MonitorOutputs
 from ..numerics import DEFAULT, Numerics
-from ..parameters import Parameters
-from ..scenario import Scenario
-from ..storage import Trace
+from ..config.parameters import Parameters
+from ..config.scenario import Scenario
+from ..io.storage import Trace
 from .common import Inputs, inputs, provenance
 
 SHORT_CIRCUIT_MODELS = {"modulated": SHORT_CIRCUIT_MODULATED, "averaged": SHORT_CIRCUIT_AVERAGED}

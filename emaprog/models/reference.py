@@ -9,9 +9,9 @@ from ..faults import FaultParams, flatten, reference_form
 from ..kernels.reference import ENERGY_SLOTS, initial_state, simulate_reference
 from ..kernels.structs import ReferenceOutputs, SensorNoise
 from ..numerics import DEFAULT, Numerics
-from ..parameters import Parameters
-from ..scenario import Scenario
-from ..storage import Trace
+from ..config.parameters import Parameters
+from ..config.scenario import Scenario
+from ..io.storage import Trace
 from .common import Inputs, inputs, provenance
 
 

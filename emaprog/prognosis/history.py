@@ -8,7 +8,7 @@ Three sources, one shape (:class:`HistoryTable`):
   ``eccentricity_zeta`` (SPEC 6 quantity names);
 * a folder of ``report.json`` files written by
   ``emaprog identify TRACE --actuator ID --usage HOURS`` (searched recursively);
-* a synthetic history YAML (:class:`~emaprog.scenario.History`): the growth
+* a synthetic history YAML (:class:`~emaprog.config.scenario.History`): the growth
   laws are applied to the base scenario, each inspection is simulated on the
   Reference Model and identified with the GA through the sweep's execution and
   storage (``RESULTS_DIR/inspections/``, resumable).
@@ -26,17 +26,15 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from . import campaign as campaigns
-from .errors import InputError
-from .faults import QUANTITIES, healthy_values
-from .identification.result import severity
-from .parameters import Parameters
-from .scenario import Faults, History, Scenario
+from ..campaign import cases as campaigns
+from ..errors import InputError
+from ..faults import CATALOGUE, FAULT_NAMES, QUANTITIES, flat_from_nested, healthy_values, severity
+from ..config.parameters import Parameters
+from ..config.scenario import Faults, History, Scenario
 
-FAULTS = ("friction", "backlash", "short_circuit", "eccentricity")
-TABLE_COLUMNS = ("friction", "backlash", "short_circuit_a", "short_circuit_b", "short_circuit_c",
-                 "eccentricity_zeta")
-FAULT_LIMIT = 0.9  # [-] shorted fraction and zeta are capped here (the fault ranges end below 1)
+#: The estimated quantities a history table holds: every fault quantity but the angles.
+TABLE_COLUMNS = tuple(name for name, q in QUANTITIES.items() if not q.circular)
+FAULT_LIMIT = 0.9  # [-] fractions and magnitudes ending below 1 (open range) are capped here
 
 
 class HistoryTable(NamedTuple):
@@ -49,7 +47,7 @@ class HistoryTable(NamedTuple):
 
 
 def _severities(values: list[dict[str, float]]) -> dict[str, np.ndarray]:
-    return {f: np.array([severity(f, v) for v in values]) for f in FAULTS}
+    return {f: np.array([severity(f, v) for v in values]) for f in FAULT_NAMES}
 
 
 def _check_usage(usage: np.ndarray, source: str | Path, key: str) -> None:
@@ -107,13 +105,7 @@ def read_reports(folder: str | Path) -> HistoryTable:
             report = json.loads(path.read_text())
             inspection = report["inspection"]
             actuator, usage = str(inspection["actuator"]), float(inspection["usage"])
-            estimate = report["estimate"]
-            values = {
-                "friction": float(estimate["friction"]), "backlash": float(estimate["backlash"]),
-                **{f"short_circuit_{x}": float(estimate["short_circuit"][x]) for x in "abc"},
-                "eccentricity_zeta": float(estimate["eccentricity"]["zeta"]),
-                "eccentricity_phase": float(estimate["eccentricity"]["phase"]),
-            }
+            values = flat_from_nested(report["estimate"])
         except (json.JSONDecodeError, UnicodeDecodeError):
             raise InputError(path, "is not valid JSON") from None
         except (KeyError, TypeError, ValueError):
@@ -146,9 +138,9 @@ class Degradation(NamedTuple):
 def realised_laws(history: History) -> dict[str, Degradation]:
     """Each growing fault's law with its rate drawn from the history seed (fixed order)."""
     rng = np.random.default_rng(np.random.SeedSequence(history.seed))
-    draws = rng.standard_normal(len(FAULTS))
+    draws = rng.standard_normal(len(FAULT_NAMES))
     laws = {}
-    for fault, z in zip(FAULTS, draws):
+    for fault, z in zip(FAULT_NAMES, draws):
         spec = getattr(history.growth, fault)
         if spec is not None:
             laws[fault] = Degradation(spec.law, spec.initial,
@@ -164,18 +156,24 @@ def _severity_at(law: Degradation, usage: float) -> float:
 
 def true_faults(history: History, laws: dict[str, Degradation], usage: float) -> Faults:
     """The actuator's faults at ``usage`` [h] (capped to the fault ranges)."""
-    s = {f: _severity_at(law, usage) for f, law in laws.items()}
-    short = {"a": 0.0, "b": 0.0, "c": 0.0}
-    if "short_circuit" in s:
-        short[history.growth.short_circuit.phase] = min(s["short_circuit"], FAULT_LIMIT)
-    ecc = {"zeta": 0.0, "phase": 0.0}
-    if "eccentricity" in s:
-        ecc = {"zeta": min(s["eccentricity"], FAULT_LIMIT), "phase": history.growth.eccentricity.angle}
-    return Faults.model_validate({
-        "friction": min(1.0 + s.get("friction", 0.0), 10.0),
-        "backlash": min(s.get("backlash", 0.0), 0.01),
-        "short_circuit": short, "eccentricity": ecc,
-    })
+    value = {}
+    for fault in CATALOGUE:
+        law = laws.get(fault.name)
+        level = _severity_at(law, usage) if law is not None else 0.0
+        growth = getattr(history.growth, fault.name)
+        if fault.layout == "scalar":
+            (q,) = fault.quantities
+            value[fault.name] = min(q.healthy + level, q.upper)
+            continue
+        value[fault.name] = {q.key: q.healthy for q in fault.quantities}
+        if law is None:
+            continue
+        if fault.layout == "per_phase":
+            value[fault.name][growth.phase] = min(level, FAULT_LIMIT)
+        else:
+            magnitude, angle = fault.quantities
+            value[fault.name] = {magnitude.key: min(level, FAULT_LIMIT), angle.key: growth.angle}
+    return Faults.model_validate(value)
 
 
 def failure_usage(law: Degradation, threshold: float) -> float:

@@ -1,6 +1,6 @@
 """What a campaign's cases say together: error statistics, detection, false alarms, isolation.
 
-Works on the case table of :class:`emaprog.campaign.CaseStore` only (never
+Works on the case table of :class:`emaprog.campaign.cases.CaseStore` only (never
 re-simulates). The tolerances are SPEC 10's identification bars.
 """
 
@@ -12,11 +12,10 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from .faults import QUANTITIES
-from .parameters import Parameters
+from ..faults import CATALOGUE, FAULT_NAMES, PHASE_FAULT, PHASES, QUANTITIES
+from ..config.parameters import Parameters
 
-FAULTS = ("friction", "backlash", "short_circuit", "eccentricity")
-PHASES = ("a", "b", "c", "none")
+PHASE_NAMES = (*PHASES, "none")
 
 
 class Accuracy(NamedTuple):
@@ -26,15 +25,8 @@ class Accuracy(NamedTuple):
     tolerance: float | None  # SPEC 10 bar on |error| in that measure; None: no bar
 
 
-ACCURACY = {
-    "friction": Accuracy("relative", 0.05),
-    "backlash": Accuracy("absolute", 5e-5),
-    "short_circuit_a": Accuracy("absolute", 0.03),
-    "short_circuit_b": Accuracy("absolute", 0.03),
-    "short_circuit_c": Accuracy("absolute", 0.03),
-    "eccentricity_zeta": Accuracy("absolute", 0.05),
-    "eccentricity_phase": Accuracy("absolute", None),  # only where zeta is detectable
-}
+#: Per quantity, from the fault catalogue.
+ACCURACY = {name: Accuracy(q.measure, q.tolerance) for name, q in QUANTITIES.items()}
 
 #: Regression tolerances of ``sweep --baseline``: a figure is "worse" only past these.
 #: Error percentiles: 25 % relative growth plus a tenth of the SPEC bar, so float-level
@@ -47,13 +39,19 @@ RATE_SLACK = 0.10
 
 
 def error_values(frame: pd.DataFrame, quantity: str, params: Parameters) -> np.ndarray:
-    """Finite errors of one quantity in its ACCURACY measure (see :func:`summarize`)."""
+    """Finite errors of one quantity in its ACCURACY measure (see :func:`summarize`).
+
+    An angle counts only where its fault's true severity reaches the incipient
+    threshold (below it the angle is not determined).
+    """
     err = frame[f"err_{quantity}"].to_numpy(float)
     if ACCURACY[quantity].measure == "relative":
         err = err / frame[f"true_{quantity}"].to_numpy(float)
-    if quantity == "eccentricity_phase":
-        detectable = frame["true_eccentricity_zeta"] >= params.spec.health.eccentricity.incipient
-        err = err[detectable.to_numpy()]
+    if QUANTITIES[quantity].circular:
+        fault = next(f for f in CATALOGUE if quantity in {q.name for q in f.quantities})
+        true_severity = np.max([np.abs(frame[f"true_{q.name}"].to_numpy(float) - q.healthy)
+                                for q in fault.magnitudes], axis=0)  # faults.severity, per row
+        err = err[true_severity >= getattr(params.spec.health, fault.name).incipient]
     return err[np.isfinite(err)]
 
 
@@ -97,14 +95,14 @@ def summarize(frame: pd.DataFrame, params: Parameters) -> dict:
     errors = {q: _statistics(error_values(frame, q, params), ACCURACY[q], QUANTITIES[q].unit)
               for q in QUANTITIES}
     detection, absent_alarms = {}, {}
-    for fault in FAULTS:
+    for fault in FAULT_NAMES:
         flagged = frame[f"health_{fault}"].isin(["incipient", "degraded"])
         present = frame[f"true_health_{fault}"] != "nominal"
         detection[fault] = {"cases": int(present.sum()), "detected": int((flagged & present).sum()),
                             "rate": _rate(int((flagged & present).sum()), int(present.sum()))}
         absent_alarms[fault] = _rate(int((flagged & ~present).sum()), int((~present).sum()))
     healthy = frame[frame["healthy_case"]]
-    flags = {f: healthy[f"health_{f}"].isin(["incipient", "degraded"]) for f in FAULTS}
+    flags = {f: healthy[f"health_{f}"].isin(["incipient", "degraded"]) for f in FAULT_NAMES}
     any_flag = np.logical_or.reduce([v.to_numpy() for v in flags.values()]) if len(healthy) else []
     false_alarms = {
         "healthy_cases": int(len(healthy)),
@@ -113,13 +111,13 @@ def summarize(frame: pd.DataFrame, params: Parameters) -> dict:
         "per_fault_on_healthy": {f: _rate(int(v.sum()), len(healthy)) for f, v in flags.items()},
         "per_fault_where_absent": absent_alarms,
     }
-    confusion = {t: {e: 0 for e in PHASES} for t in PHASES}
-    true_phase = np.where(frame["true_health_short_circuit"] != "nominal",
-                          frame["true_short_circuit_phase"], "none")
-    for t, e in zip(true_phase, frame["est_short_circuit_phase"]):
+    confusion = {t: {e: 0 for e in PHASE_NAMES} for t in PHASE_NAMES}
+    true_phase = np.where(frame[f"true_health_{PHASE_FAULT}"] != "nominal",
+                          frame[f"true_{PHASE_FAULT}_phase"], "none")
+    for t, e in zip(true_phase, frame[f"est_{PHASE_FAULT}_phase"]):
         confusion[t][e] += 1
     faulty = [t for t in true_phase if t != "none"]
-    right = sum(confusion[t][t] for t in "abc")
+    right = sum(confusion[t][t] for t in PHASES)
     return {
         "cases": int(len(frame)),
         "errors": errors,
@@ -194,8 +192,8 @@ def markdown(summary: dict) -> str:
         f"{_cell(summary['false_alarms']['per_fault_where_absent'][f], '{:.0%}')} |"
         for f, d in summary["detection"].items())
     confusion = summary["isolation"]["confusion"]
-    matrix = "\n".join(f"| {t} | " + " | ".join(str(confusion[t][e]) for e in PHASES) + " |"
-                       for t in PHASES)
+    matrix = "\n".join(f"| {t} | " + " | ".join(str(confusion[t][e]) for e in PHASE_NAMES) + " |"
+                       for t in PHASE_NAMES)
     fa = summary["false_alarms"]
     failures = summary.get("failed", 0)
     return f"""# Campaign {summary['campaign']}: {summary['cases']} cases
@@ -235,7 +233,7 @@ fault is truly below its incipient threshold.
 Rows: true faulty phase; columns: phase named by the verdict. Correct on
 {_cell(summary['isolation']['correct_rate'], '{:.0%}')} of {summary['isolation']['cases']} faulty cases.
 
-| true \\ named | {' | '.join(PHASES)} |
+| true \\ named | {' | '.join(PHASE_NAMES)} |
 |---|---|---|---|---|
 {matrix}
 

@@ -6,22 +6,13 @@ import math
 
 import numpy as np
 
-from . import __version__
-from .history import FAULTS, HistoryTable
-from .parameters import Parameters
-from .prognosis import BOOTSTRAP, MIN_POINTS, alpha_lambda, predict, prognostic_horizon, relative_accuracy
+from .. import __version__
+from ..faults import FAULT_NAMES, FAULTS
+from .history import HistoryTable
+from ..config.parameters import Parameters
+from .fit import BOOTSTRAP, MIN_POINTS, alpha_lambda, predict, prognostic_horizon, relative_accuracy
 
 ALPHA = 0.2  # [-] half width of the alpha-lambda cone around the true RUL
-
-#: Accuracy of one identification (1 sigma of the estimate error, in severity units),
-#: kept conservative: the 95th percentiles of |error| over 1.96 on the 50-case quick
-#: campaign before the pair eccentricity law (friction 2.5 % of k_f ~ 1.5, backlash
-#: 3.7e-5 rad, shorted fraction 0.04, zeta 0.11). Today's p95 are 2-5 times smaller
-#: (docs/sweep/quick) but the tails are not (largest shorted-fraction error 0.07).
-#: The RUL bootstrap never assumes the estimates better than this.
-IDENTIFICATION_SIGMA = {"friction": 0.019, "backlash": 1.9e-5, "short_circuit": 0.02,
-                        "eccentricity": 0.055}
-
 
 def _finite(x: float) -> float | None:
     """JSON has no infinity: a RUL beyond the prognosis horizon is written as null."""
@@ -29,7 +20,7 @@ def _finite(x: float) -> float | None:
 
 
 def analyse(table: HistoryTable, params: Parameters, law: str = "auto") -> dict:
-    """The trend.json content of a history (see :mod:`emaprog.prognosis` for the method).
+    """The trend.json content of a history (see :mod:`emaprog.prognosis.fit` for the method).
 
     Per fault: the first inspection whose estimate reached the ``incipient``
     threshold; from then on (status "tracked") the growth law fitted to all
@@ -45,7 +36,7 @@ def analyse(table: HistoryTable, params: Parameters, law: str = "auto") -> dict:
     """
     usage = table.usage
     faults = {}
-    for index, fault in enumerate(FAULTS):
+    for index, fault in enumerate(FAULT_NAMES):
         limits = getattr(params.spec.health, fault)
         s = table.severity[fault]
         detected = np.flatnonzero(s >= limits.incipient)
@@ -61,7 +52,7 @@ def analyse(table: HistoryTable, params: Parameters, law: str = "auto") -> dict:
         faults[fault] = entry
         if not detected.size:
             continue
-        floor = IDENTIFICATION_SIGMA[fault]
+        floor = FAULTS[fault].identification_sigma
         last = predict(usage, s, limits.failure, law, seed=index, noise_floor=floor)
         history = []
         for k in range(max(MIN_POINTS, int(detected[0]) + 1), usage.size + 1):

@@ -40,18 +40,19 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from . import parameters as parameter_sets
-from .errors import InputError
-from .faults import QUANTITIES, flatten, worst_phase
-from .identification import identify_trace
-from .identification import result as verdicts
-from .models import reference
-from .models.common import inputs
-from .parameters import Parameters
-from .report import write_json
-from .scenario import Campaign, Faults, IdentifySettings, Scenario
+from ..config import parameters as parameter_sets
+from ..errors import InputError
+from ..faults import (
+    CATALOGUE, FAULT_NAMES, PHASE_FAULT, PHASES, QUANTITIES, Fault, flatten, worst_phase,
+)
+from ..identification import identify_trace
+from ..identification import result as verdicts
+from ..models import reference
+from ..models.common import inputs
+from ..config.parameters import Parameters
+from ..config.scenario import Campaign, Faults, IdentifySettings, Scenario
+from ..io.storage import write_json
 
-FAULTS = ("friction", "backlash", "short_circuit", "eccentricity")
 SEED_LIMIT = 2**32  # scenario and GA seeds are uint32
 CASE_FILE = "case-{:06d}"
 
@@ -73,43 +74,54 @@ def identify_settings(campaign: Campaign, base: Scenario) -> IdentifySettings:
     return campaign.identify if "identify" in campaign.model_fields_set else base.identify
 
 
+def _draw(layout: str, rng: np.random.Generator) -> tuple:
+    """The uniform draws of one fault, by layout (every draw made, used or not)."""
+    if layout == "scalar":
+        return (rng.random(),)
+    if layout == "per_phase":
+        return int(rng.integers(3)), rng.random()  # phase, fraction
+    return rng.random(), rng.random()  # polar: magnitude, angle
+
+
+def _scaled(dist, u: float, healthy_value: float) -> float:
+    if dist is None:
+        return healthy_value
+    lo, hi = dist.uniform
+    return float(lo + u * (hi - lo))
+
+
+def _fault_value(fault: Fault, dist, draws: tuple):
+    """A fault's YAML value from its distribution (``None``: healthy) and its draws."""
+    if fault.layout == "scalar":
+        return _scaled(dist, draws[0], fault.quantities[0].healthy)
+    value = {q.key: q.healthy for q in fault.quantities}
+    if dist is None:
+        return value
+    if fault.layout == "per_phase":
+        phase = PHASES[draws[0]] if dist.phase == "any" else dist.phase
+        value[phase] = _scaled(dist.fraction, draws[1], 0.0)
+        return value
+    magnitude, angle = fault.quantities
+    return {magnitude.key: _scaled(dist.zeta, draws[0], magnitude.healthy),
+            angle.key: _scaled(dist.phase, draws[1], angle.healthy)}
+
+
 def sample_case(campaign: Campaign, case_id: int) -> tuple[bool, Faults, int, int]:
     """Draw case ``case_id``'s faults, Reference noise seed and GA seed.
 
     Every draw is made whether or not its distribution is given, in a fixed
-    order, so adding a distribution to a campaign does not reshuffle the
-    others' streams. Returns (healthy, faults, noise_seed, ga_seed).
+    order (catalogue order), so adding a distribution to a campaign does not
+    reshuffle the others' streams. Returns (healthy, faults, noise_seed, ga_seed).
     """
     rng = np.random.default_rng(np.random.SeedSequence(campaign.seed, spawn_key=(case_id,)))
     d = campaign.faults
     healthy = bool(rng.random() < d.healthy_fraction)
-    draws = {
-        "friction": rng.random(), "backlash": rng.random(), "phase": int(rng.integers(3)),
-        "fraction": rng.random(), "zeta": rng.random(), "ecc_phase": rng.random(),
-    }
+    draws = {f.name: _draw(f.layout, rng) for f in CATALOGUE}
     noise_seed, ga_seed = (int(s) for s in rng.integers(0, SEED_LIMIT, size=2))
     if healthy:
         return True, Faults(), noise_seed, ga_seed
-
-    def scaled(dist, u: float, healthy_value: float) -> float:
-        if dist is None:
-            return healthy_value
-        lo, hi = dist.uniform
-        return float(lo + u * (hi - lo))
-
-    short = {"a": 0.0, "b": 0.0, "c": 0.0}
-    if d.short_circuit is not None:
-        phase = "abc"[draws["phase"]] if d.short_circuit.phase == "any" else d.short_circuit.phase
-        short[phase] = scaled(d.short_circuit.fraction, draws["fraction"], 0.0)
-    ecc = {"zeta": 0.0, "phase": 0.0}
-    if d.eccentricity is not None:
-        ecc = {"zeta": scaled(d.eccentricity.zeta, draws["zeta"], 0.0),
-               "phase": scaled(d.eccentricity.phase, draws["ecc_phase"], 0.0)}
-    faults = Faults.model_validate({
-        "friction": scaled(d.friction, draws["friction"], 1.0),
-        "backlash": scaled(d.backlash, draws["backlash"], 0.0),
-        "short_circuit": short, "eccentricity": ecc,
-    })
+    faults = Faults.model_validate({f.name: _fault_value(f, getattr(d, f.name), draws[f.name])
+                                    for f in CATALOGUE})
     return False, faults, noise_seed, ga_seed
 
 
@@ -149,7 +161,7 @@ def run_case(spec: CaseSpec) -> dict:
     truth = flatten(spec.scenario.faults)
     error = verdicts.errors(result.estimate, truth)
     health = verdicts.health(result.estimate, spec.settings.estimate, spec.params)
-    true_health = verdicts.health(truth, list(FAULTS), spec.params)
+    true_health = verdicts.health(truth, list(FAULT_NAMES), spec.params)
     row: dict = {
         "case_id": spec.case_id,
         "healthy_case": spec.healthy,
@@ -160,12 +172,12 @@ def run_case(spec: CaseSpec) -> dict:
         row[f"true_{name}"] = float(truth[name])
         row[f"est_{name}"] = float(result.estimate[name])
         row[f"err_{name}"] = float("nan") if error[name] is None else float(error[name])
-    for fault in FAULTS:
+    for fault in FAULT_NAMES:
         row[f"health_{fault}"] = health.get(fault, "not estimated")
         row[f"true_health_{fault}"] = true_health[fault]
     row.update({
-        "true_short_circuit_phase": worst_phase(truth) or "none",
-        "est_short_circuit_phase": _detected_phase(result.estimate, health),
+        f"true_{PHASE_FAULT}_phase": worst_phase(truth) or "none",
+        f"est_{PHASE_FAULT}_phase": _detected_phase(result.estimate, health),
         "fitness": float(result.fitness),
         "evaluations": int(result.evaluations),
         "generations": int(result.generations),
@@ -177,7 +189,7 @@ def run_case(spec: CaseSpec) -> dict:
 
 def _detected_phase(estimate: dict[str, float], health: dict[str, str]) -> str:
     """The phase named faulty: the worst one, only when the short circuit is not nominal."""
-    if health.get("short_circuit", "nominal") == "nominal":
+    if health.get(PHASE_FAULT, "nominal") == "nominal":
         return "none"
     return worst_phase(estimate) or "none"
 
@@ -418,7 +430,7 @@ def execute(specs: Iterable[CaseSpec], store: CaseStore, provenance: dict, count
     in this process. Returns ``{"done": n, "failed": n}``; Ctrl-C raises
     :class:`Interrupted` once the workers are stopped.
     """
-    from . import progress
+    from .. import progress
 
     counts = {"done": 0, "failed": 0}
     with progress.task(label, count, show_progress) as advance:

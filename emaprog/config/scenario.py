@@ -12,9 +12,10 @@ from pathlib import Path
 from typing import Annotated, Any, Literal, Optional, Union
 
 from pydantic import (BaseModel, ConfigDict, Field, ValidationError, ValidationInfo,
-                      field_validator, model_validator)
+                      create_model, field_validator, model_validator)
 
-from .errors import from_validation_error
+from ..errors import from_validation_error
+from ..faults import CATALOGUE, FAULT_NAMES, FAULTS, Fault, Quantity
 from .yamlfile import load_mapping
 
 TWO_PI = 2.0 * math.pi
@@ -32,7 +33,6 @@ def _num(lo: float | None = None, hi: float | None = None, *, lo_open=False, hi_
 
 Angle = _num(-0.4, 0.4, description="[rad] surface angle, within the end stops")
 Frequency = _num(0.0, 200.0, lo_open=True, description="[Hz]")
-Fraction = _num(0.0, 1.0, hi_open=True, description="[-] shorted fraction of a phase's turns")
 
 
 class Strict(BaseModel):
@@ -102,59 +102,52 @@ LOAD_TAGS = ("none", "constant", "spring")
 
 
 # -------------------------------------------------------------------- faults
-class ShortCircuit(Strict):
-    a: Fraction = 0.0
-    b: Fraction = 0.0
-    c: Fraction = 0.0
+def _quantity_field(q: Quantity):
+    """The scenario field of one fault quantity: its range and unit from the catalogue."""
+    return _num(q.lower, q.upper, hi_open=q.upper_open, description=f"[{q.unit}] {q.label}")
 
 
-class Eccentricity(Strict):
-    zeta: _num(0.0, 1.0, hi_open=True, description="[-] air-gap reduction / nominal gap") = 0.0
-    phase: _num(0.0, TWO_PI, description="[rad] angular position of the narrow gap") = 0.0
+def _fault_value_type(fault: Fault) -> tuple[Any, Any]:
+    """(annotation, healthy default) of a fault's value in ``faults:``."""
+    if fault.layout == "scalar":
+        (q,) = fault.quantities
+        return _quantity_field(q), q.healthy
+    model = create_model(_camel(fault.name), __base__=Strict, __module__=__name__,
+                         **{q.key: (_quantity_field(q), q.healthy) for q in fault.quantities})
+    globals()[model.__name__] = model  # a module attribute, so that instances pickle (sweep workers)
+    return model, model()
 
 
-class Faults(Strict):
-    friction: _num(0.1, 10.0, description="[-] multiplier of nominal dry friction") = 1.0
-    backlash: _num(0.0, 0.01, description="[rad] total play on the output shaft") = 0.0
-    short_circuit: ShortCircuit = ShortCircuit()
-    eccentricity: Eccentricity = Eccentricity()
+def _camel(name: str) -> str:
+    return "".join(part.capitalize() for part in name.split("_"))
+
+
+#: True faults of a scenario (SPEC 3), one field per catalogue fault; omitted = healthy.
+Faults = create_model("Faults", __base__=Strict, __module__=__name__,
+                      **{f.name: _fault_value_type(f) for f in CATALOGUE})
 
 
 # ------------------------------------------------------------------ identify
-FaultName = Literal["friction", "backlash", "short_circuit", "eccentricity"]
-
-DEFAULT_BOUNDS = {
-    "friction": (0.5, 4.0),
-    "backlash": (0.0, 1.5e-3),
-    "short_circuit": (0.0, 0.5),
-    "eccentricity": (0.0, 0.8),
-}
-BOUND_LIMITS = {  # what a bound itself may be, same units as Faults
-    "friction": (0.1, 10.0),
-    "backlash": (0.0, 0.01),
-    "short_circuit": (0.0, 0.95),
-    "eccentricity": (0.0, 0.95),
-}
+FaultName = Literal[FAULT_NAMES]
 
 
-class Bounds(Strict):
-    friction: tuple[float, float] = DEFAULT_BOUNDS["friction"]
-    backlash: tuple[float, float] = DEFAULT_BOUNDS["backlash"]
-    short_circuit: tuple[float, float] = DEFAULT_BOUNDS["short_circuit"]
-    eccentricity: tuple[float, float] = DEFAULT_BOUNDS["eccentricity"]
+def _check_bounds(value: tuple[float, float], info: ValidationInfo):
+    lo, hi = value
+    low, high = FAULTS[info.field_name].bound_limits
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        raise ValueError("bounds must be finite numbers")
+    if not lo < hi:
+        raise ValueError(f"lower bound {lo} must be below upper bound {hi}")
+    if lo < low or hi > high:
+        raise ValueError(f"bounds must lie within [{low}, {high}]")
+    return value
 
-    @field_validator("friction", "backlash", "short_circuit", "eccentricity")
-    @classmethod
-    def _check(cls, value: tuple[float, float], info: ValidationInfo):
-        lo, hi = value
-        low, high = BOUND_LIMITS[info.field_name]
-        if not (math.isfinite(lo) and math.isfinite(hi)):
-            raise ValueError("bounds must be finite numbers")
-        if not lo < hi:
-            raise ValueError(f"lower bound {lo} must be below upper bound {hi}")
-        if lo < low or hi > high:
-            raise ValueError(f"bounds must lie within [{low}, {high}]")
-        return value
+
+#: Search range of each fault's magnitudes (its angles span the circle).
+Bounds = create_model(
+    "Bounds", __base__=Strict, __module__=__name__,
+    __validators__={"_check": field_validator(*FAULT_NAMES)(_check_bounds)},
+    **{f.name: (tuple[float, float], f.default_bounds) for f in CATALOGUE})
 
 
 class Signals(Strict):
@@ -178,9 +171,7 @@ class GASettings(Strict):
 
 
 class IdentifySettings(Strict):
-    estimate: list[FaultName] = Field(
-        default_factory=lambda: ["friction", "backlash", "short_circuit", "eccentricity"]
-    )
+    estimate: list[FaultName] = Field(default_factory=lambda: list(FAULT_NAMES))
     bounds: Bounds = Bounds()
     signals: Signals = Signals()
     ga: GASettings = GASettings()
@@ -262,48 +253,51 @@ class Uniform(Strict):
         return self
 
 
-class ShortCircuitDistribution(Strict):
+class PhaseDistribution(Strict):
+    """A ``per_phase`` fault's distribution: which phase, and its fraction."""
+
     phase: Literal["any", "a", "b", "c"] = "any"
     fraction: Uniform
 
+    @field_validator("fraction")
+    @classmethod
+    def _fraction_range(cls, dist):
+        if dist.uniform[0] < 0 or dist.uniform[1] >= 1:
+            raise ValueError("uniform range must lie within [0, 1)")
+        return dist
 
-class EccentricityDistribution(Strict):
+
+class PolarDistribution(Strict):
+    """A ``polar`` fault's distribution: its magnitude (zeta) and angle."""
+
     zeta: Uniform
     phase: Uniform = Uniform(uniform=(0.0, TWO_PI))
 
-
-class FaultDistributions(Strict):
-    friction: Uniform | None = None
-    backlash: Uniform | None = None
-    short_circuit: ShortCircuitDistribution | None = None
-    eccentricity: EccentricityDistribution | None = None
-    healthy_fraction: _num(0.0, 1.0, description="[-] share of all-healthy cases") = 0.0
-
-    @field_validator("friction", "backlash")
-    @classmethod
-    def _within_fault_range(cls, dist, info: ValidationInfo):
-        lo, hi = {"friction": (0.1, 10.0), "backlash": (0.0, 0.01)}[info.field_name]
-        if dist is not None and (dist.uniform[0] < lo or dist.uniform[1] > hi):
-            raise ValueError(f"uniform range must lie within [{lo}, {hi}]")
-        return dist
-
-    @field_validator("short_circuit")
-    @classmethod
-    def _fraction_range(cls, dist):
-        if dist is not None and (dist.fraction.uniform[0] < 0 or dist.fraction.uniform[1] >= 1):
-            raise ValueError("fraction: uniform range must lie within [0, 1)")
-        return dist
-
-    @field_validator("eccentricity")
-    @classmethod
-    def _eccentricity_range(cls, dist):
-        if dist is None:
-            return dist
-        if dist.zeta.uniform[0] < 0 or dist.zeta.uniform[1] >= 1:
+    @model_validator(mode="after")
+    def _ranges(self):
+        if self.zeta.uniform[0] < 0 or self.zeta.uniform[1] >= 1:
             raise ValueError("zeta: uniform range must lie within [0, 1)")
-        if dist.phase.uniform[0] < 0 or dist.phase.uniform[1] > TWO_PI:
+        if self.phase.uniform[0] < 0 or self.phase.uniform[1] > TWO_PI:
             raise ValueError("phase: uniform range must lie within [0, 2 pi]")
-        return dist
+        return self
+
+
+def _scalar_within_range(dist, info: ValidationInfo):
+    (q,) = FAULTS[info.field_name].quantities
+    if dist is not None and (dist.uniform[0] < q.lower or dist.uniform[1] > q.upper):
+        raise ValueError(f"uniform range must lie within [{q.lower}, {q.upper}]")
+    return dist
+
+
+DISTRIBUTION = {"scalar": Uniform, "per_phase": PhaseDistribution, "polar": PolarDistribution}
+_SCALAR_FAULTS = [f.name for f in CATALOGUE if f.layout == "scalar"]
+
+#: Distributions of the true faults of a campaign's cases, one optional field per fault.
+FaultDistributions = create_model(
+    "FaultDistributions", __base__=Strict, __module__=__name__,
+    __validators__={"_scalar": field_validator(*_SCALAR_FAULTS)(_scalar_within_range)},
+    healthy_fraction=(_num(0.0, 1.0, description="[-] share of all-healthy cases"), 0.0),
+    **{f.name: (Optional[DISTRIBUTION[f.layout]], None) for f in CATALOGUE})
 
 
 class Campaign(Strict):
@@ -348,7 +342,7 @@ def load_any(path: str | Path) -> tuple[str, Any]:
 
 # ------------------------------------------------------------------ history
 class GrowthLaw(Strict):
-    """Growth of a fault's severity with usage (see :mod:`emaprog.prognosis`).
+    """Growth of a fault's severity with usage (see :mod:`emaprog.prognosis.fit`).
 
     linear: ``s(u) = initial + rate u``; exponential: ``s(u) = initial exp(rate u)``.
     The severity is the health-threshold scalar: ``k_f - 1`` for friction,
@@ -362,25 +356,32 @@ class GrowthLaw(Strict):
                                             "history from its seed") = 0.0
 
 
-class ShortCircuitGrowth(GrowthLaw):
+class PhaseGrowth(GrowthLaw):
+    """A ``per_phase`` fault grows on one phase."""
+
     phase: Literal["a", "b", "c"]
 
 
-class EccentricityGrowth(GrowthLaw):
+class PolarGrowth(GrowthLaw):
+    """A ``polar`` fault grows in magnitude at a fixed angle."""
+
     angle: _num(0.0, TWO_PI, description="[rad] angular position of the narrow gap") = 0.0
 
 
-class Growth(Strict):
-    friction: GrowthLaw | None = None
-    backlash: GrowthLaw | None = None
-    short_circuit: ShortCircuitGrowth | None = None
-    eccentricity: EccentricityGrowth | None = None
+GROWTH = {"scalar": GrowthLaw, "per_phase": PhaseGrowth, "polar": PolarGrowth}
 
-    @model_validator(mode="after")
-    def _some_fault(self):
-        if not any((self.friction, self.backlash, self.short_circuit, self.eccentricity)):
-            raise ValueError("growth must give a law for at least one fault")
-        return self
+
+def _some_fault(self):
+    if not any(getattr(self, f) is not None for f in FAULT_NAMES):
+        raise ValueError("growth must give a law for at least one fault")
+    return self
+
+
+#: Growth law of each degrading fault of a synthetic history.
+Growth = create_model(
+    "Growth", __base__=Strict, __module__=__name__,
+    __validators__={"_some_fault": model_validator(mode="after")(_some_fault)},
+    **{f.name: (Optional[GROWTH[f.layout]], None) for f in CATALOGUE})
 
 
 class Inspections(Strict):

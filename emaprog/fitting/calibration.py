@@ -21,16 +21,16 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from . import signals
-from .faults import HEALTHY, ZETA_COLUMN, MonitorFaults, monitor_form, values_of
-from .kernels.monitor import evaluate_population
-from .kernels.structs import ErrorTarget, MonitorOptions, unit_row
-from .identification.objective import FILTER_SECONDS, STARTUP_SECONDS, low_pass
-from .models import monitor, reference
-from .models.common import Inputs
-from .numerics import DEFAULT
-from .parameters import Parameters
-from .scenario import ChirpCommand, NoLoad
+from .. import signals
+from ..faults import HEALTHY, ZETA_COLUMN, MonitorFaults, monitor_form, values_of
+from ..kernels.monitor import evaluate_population
+from ..kernels.structs import ErrorTarget, MonitorOptions, unit_row
+from ..identification.objective import FILTER_SECONDS, STARTUP_SECONDS, low_pass
+from ..models import monitor, reference
+from ..models.common import Inputs
+from ..numerics import DEFAULT
+from ..config.parameters import Parameters
+from ..config.scenario import ChirpCommand, NoLoad
 
 ZETA_GRID = np.linspace(0.1, 0.8, 8)
 #: The paper's Fig. 10 levels, one fault at a time (physical form: eccentricity as zeta).
@@ -163,13 +163,46 @@ def calibrate(params: Parameters) -> dict:
     }
 
 
-def write_into(path: str | Path, result: dict) -> None:
-    """Store the calibrated monitor values in the parameter file, keeping its comments."""
-    path = Path(path)
-    text = path.read_text()
-    for key, fmt in (("eccentricity_gain", "{:.4f}"), ("commutation_loss", "{:.3e}")):
-        text, count = re.subn(rf"^(  {key}:).*$", rf"\1 {fmt.format(result[key])}", text,
-                              flags=re.MULTILINE)
+def calibrated_set(source: str | Path, result: dict, date: str) -> str:
+    """The input parameter file's text with the calibrated monitor values and a change record.
+
+    Comments and layout are kept; ``changes:`` gains one line saying what moved, from
+    what, and who wrote it. The text is checked to load as a parameter set with exactly
+    the calibrated values before it is returned.
+    """
+    from ..config.parameters import ParameterFile
+    from ..config.yamlfile import parse_mapping
+
+    text = Path(source).read_text()
+    before = ParameterFile.model_validate(parse_mapping(text, source)).monitor
+    moved = []
+    for key, fmt in CALIBRATED:
+        value = fmt.format(result[key])
+        text, count = re.subn(rf"^(  {key}:).*$", rf"\g<1> {value}", text, flags=re.MULTILINE)
         if count != 1:
-            raise ValueError(f"{path}: cannot find monitor.{key} to update")
-    path.write_text(text)
+            raise ValueError(f"{source}: cannot find monitor.{key} to update")
+        moved.append(f"{key} {getattr(before, key):g} -> {float(value):g}")
+    record = (f'  - "monitor: {", ".join(moved)}, written by `emaprog calibrate` on {date} '
+              f'(r^2 {result["r_squared"]:.4f}; signature errors '
+              f'{max(result["signature_error"].values()):.2f} at most)."')
+    if re.search(r"^changes:\s*\[\s*\]\s*$", text, flags=re.MULTILINE):
+        text = re.sub(r"^changes:\s*\[\s*\]\s*$", "changes:\n" + record, text, flags=re.MULTILINE)
+    elif re.search(r"^changes:\s*$", text, flags=re.MULTILINE):
+        lines = text.splitlines()
+        start = lines.index(next(line for line in lines if re.match(r"^changes:\s*$", line)))
+        end = start + 1
+        while end < len(lines) and (lines[end].startswith(" ") or not lines[end].strip()):
+            end += 1
+        lines.insert(end, record)
+        text = "\n".join(lines) + "\n"
+    else:
+        text = text.rstrip("\n") + "\nchanges:\n" + record + "\n"
+    after = ParameterFile.model_validate(parse_mapping(text, source)).monitor
+    for key, fmt in CALIBRATED:
+        if getattr(after, key) != float(fmt.format(result[key])):
+            raise ValueError(f"{source}: the calibrated set does not hold monitor.{key}")
+    return text
+
+
+#: The monitor values calibration writes, with their format in the YAML.
+CALIBRATED = (("eccentricity_gain", "{:.4f}"), ("commutation_loss", "{:.3e}"))

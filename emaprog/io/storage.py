@@ -12,7 +12,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from .errors import InputError
+from ..errors import InputError
 
 #: Every trace column: unit and description. The single table of record.
 COLUMNS: dict[str, tuple[str, str]] = {
@@ -69,6 +69,44 @@ def write_trace(path: str | Path, trace: Trace) -> Path:
     return path
 
 
+def _require_columns(names, source: str | Path) -> None:
+    missing = [c for c in REQUIRED if c not in names]
+    if missing:
+        raise InputError(source, f"missing column(s) {', '.join(missing)}; a trace needs "
+                         f"{', '.join(REQUIRED)} (SPEC 4)")
+
+
+def check_columns(raw: dict[str, Any], source: str | Path) -> dict[str, np.ndarray]:
+    """The contract columns of a trace, checked; any problem is an :class:`InputError`.
+
+    The SPEC 4 required columns present, numeric and finite, at least 10 samples,
+    strictly increasing and uniformly spaced time. Foreign extra columns are
+    ignored, never guessed at.
+    """
+    _require_columns(raw, source)
+    columns = {}
+    for name, values in raw.items():
+        if name not in COLUMNS:
+            continue
+        values = np.asarray(values)
+        if values.dtype.kind not in "fiu":
+            raise InputError(source, f"column has type {values.dtype}, expected float64", name)
+        values = values.astype(np.float64)
+        if not np.all(np.isfinite(values)):
+            raise InputError(source, "column holds NaN or infinite values", name)
+        columns[name] = values
+    t = columns["time"]
+    if t.size < 10:
+        raise InputError(source, f"only {t.size} samples; at least 10 are needed", "time")
+    dt = np.diff(t)
+    if np.any(dt <= 0):
+        raise InputError(source, "time must increase strictly from sample to sample", "time")
+    if np.max(np.abs(dt - np.median(dt))) > 1e-6 * np.median(dt) + 1e-12:
+        raise InputError(source, "samples must be uniformly spaced (one row per controller period)",
+                         "time")
+    return columns
+
+
 def read_trace(path: str | Path) -> Trace:
     """Read and validate a trace; any problem is an :class:`InputError`.
 
@@ -84,32 +122,16 @@ def read_trace(path: str | Path) -> Trace:
         table = pq.read_table(path)
     except (pa.ArrowInvalid, OSError) as exc:
         raise InputError(path, f"is not a readable Parquet trace ({str(exc).splitlines()[0]})") from None
-    names = table.column_names
-    missing = [c for c in REQUIRED if c not in names]
-    if missing:
-        raise InputError(path, f"missing column(s) {', '.join(missing)}; a trace needs "
-                         f"{', '.join(REQUIRED)} (SPEC 4)")
-    columns = {}
-    for name in names:
-        if name not in COLUMNS:
-            continue  # foreign extra columns are ignored, never guessed at
+    _require_columns(table.column_names, path)
+    raw_columns = {}
+    for name in table.column_names:
         col = table.column(name)
-        if not (pa.types.is_floating(col.type) or pa.types.is_integer(col.type)):
+        if name in COLUMNS and not (pa.types.is_floating(col.type) or pa.types.is_integer(col.type)):
             raise InputError(path, f"column has type {col.type}, expected float64", name)
-        if col.null_count:
+        if name in COLUMNS and col.null_count:
             raise InputError(path, f"column has {col.null_count} missing values", name)
-        values = col.to_numpy().astype(np.float64)
-        if not np.all(np.isfinite(values)):
-            raise InputError(path, "column holds NaN or infinite values", name)
-        columns[name] = values
-    t = columns["time"]
-    if t.size < 10:
-        raise InputError(path, f"only {t.size} samples; at least 10 are needed", "time")
-    dt = np.diff(t)
-    if np.any(dt <= 0):
-        raise InputError(path, "time must increase strictly from sample to sample", "time")
-    if np.max(np.abs(dt - np.median(dt))) > 1e-6 * np.median(dt) + 1e-12:
-        raise InputError(path, "samples must be uniformly spaced (one row per controller period)", "time")
+        raw_columns[name] = col.to_numpy() if name in COLUMNS else None
+    columns = check_columns(raw_columns, path)
     metadata = None
     raw = (table.schema.metadata or {}).get(METADATA_KEY)
     if raw is not None:
@@ -122,7 +144,35 @@ def read_trace(path: str | Path) -> Trace:
     return Trace(columns, metadata)
 
 
+def frame_of(trace: Trace) -> "pd.DataFrame":
+    """A trace as a DataFrame: ``attrs["units"]`` per column, ``attrs["emaprog"]`` provenance."""
+    import pandas as pd
+
+    frame = pd.DataFrame({name: np.asarray(values, float) for name, values in trace.columns.items()})
+    frame.attrs["units"] = {name: COLUMNS[name][0] for name in trace.columns}
+    frame.attrs["emaprog"] = trace.metadata
+    return frame
+
+
+def trace_of(frame: "pd.DataFrame", source: str | Path = "trace") -> Trace:
+    """A DataFrame (from :func:`frame_of`, or a recording with the contract columns) as a Trace.
+
+    Checked like a file (:func:`check_columns`); provenance from ``attrs["emaprog"]``.
+    """
+    columns = {str(name): frame[name].to_numpy() for name in frame.columns}
+    return Trace(check_columns(columns, source), frame.attrs.get("emaprog"))
+
+
 def column_units(path: str | Path) -> dict[str, str]:
     """Units stored in the Arrow field metadata of a trace file."""
     schema = pq.read_schema(path)
     return {f.name: (f.metadata or {}).get(b"unit", b"").decode() for f in schema}
+
+
+def write_json(path: str | Path, data: dict) -> Path:
+    """Write JSON atomically (temporary name, then rename)."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(json.dumps(data, indent=2, default=float) + "\n")
+    os.replace(tmp, path)
+    return path

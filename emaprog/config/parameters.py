@@ -12,10 +12,11 @@ from importlib import resources
 from pathlib import Path
 from typing import Annotated, Literal, NamedTuple
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model, model_validator
 
-from .errors import InputError, from_validation_error
-from .kernels.structs import (
+from ..errors import InputError, from_validation_error
+from ..faults import CATALOGUE
+from ..kernels.structs import (
     ControllerParams, ElectricalParams, MechanicalParams, Plant, SensorParams,
 )
 from .yamlfile import load_mapping
@@ -120,13 +121,11 @@ class Threshold(_Section):
         return self
 
 
-class Health(_Section):
-    """Health verdict thresholds on the *deviation* from healthy of each fault."""
-
-    friction: Threshold = Field(description="[-] friction multiplier minus 1")
-    backlash: Threshold = Field(description="[rad]")
-    short_circuit: Threshold = Field(description="[-] shorted fraction, worst phase")
-    eccentricity: Threshold = Field(description="[-] zeta")
+#: Health verdict thresholds on the *severity* of each catalogue fault (its deviation from
+#: healthy: :attr:`emaprog.faults.Fault.severity`).
+Health = create_model(
+    "Health", __base__=_Section, __module__=__name__,
+    **{f.name: (Threshold, Field(description=f.severity)) for f in CATALOGUE})
 
 
 class ParameterFile(_Section):

@@ -1,0 +1,1 @@
+"""Monte-Carlo campaigns: case sampling, execution, the resumable store, summaries."""

@@ -1,0 +1,1 @@
+"""Strict YAML -> frozen models: scenarios, campaigns, histories, parameter sets."""

@@ -1,0 +1,1 @@
+"""Fitting the Monitor Model: to the Reference Model (calibration)."""

@@ -1,0 +1,1 @@
+"""Files in and out: the contract Parquet traces and JSON, with provenance."""

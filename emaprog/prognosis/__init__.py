@@ -1,0 +1,1 @@
+"""Prognosis: degradation histories, growth-law fits and RUL, trend analysis."""
