@@ -225,3 +225,65 @@ def test_pair_eccentricity_law_is_the_reference_law_on_the_active_pair():
             if working.min() == 1.0:
                 shape = eccentricity_shape(theta_e, s6, phi, ECCENTRICITY_PAIR)
                 assert gain == pytest.approx(2 * k * (1 - z * shape), rel=1e-12)
+
+
+def test_every_kernel_takes_at_most_twelve_named_arguments():
+    """STYLE 5: kernels take named structs, a dozen arguments at most."""
+    import inspect
+
+    from emaprog.kernels import bldc, control, mechanics, monitor, reference
+
+    counted = 0
+    for module in (bldc, control, mechanics, monitor, reference):
+        for name, func in vars(module).items():
+            py_func = getattr(func, "py_func", None)
+            if py_func is not None and py_func.__module__ == module.__name__:
+                counted += 1
+                assert len(inspect.signature(py_func).parameters) <= 12, f"{module.__name__}.{name}"
+    assert counted >= 20
+
+
+def test_unit_rows_vary_the_plant_per_candidate(params):
+    """A candidate's unit row (inertia, viscous, friction, R, k_e, L, stiffness, hinge moment)
+    gives the same fitness as the Monitor built from a parameter set with those values and
+    a scenario with that constant hinge moment; a shared row equals a row per candidate."""
+    from emaprog.config.parameters import ParameterFile, derive
+    from emaprog.kernels.monitor import evaluate_population
+    from emaprog.kernels.structs import UNIT_COLUMNS, unit_row
+    from emaprog.models import monitor
+
+    objective = objective_for("fig10-multiple-faults", params)
+    genes = np.random.default_rng(3).random((3, objective.dims))
+    rows = objective.kernel_rows(genes)
+    changed = {"motor_inertia": 1.08, "surface_inertia": 0.9, "motor_viscous": 1.3,
+               "static_friction": 1.1, "dynamic_friction": 1.05, "phase_resistance": 1.1,
+               "back_emf_constant": 0.98, "phase_inductance": 0.9, "transmission_stiffness": 0.85}
+    spec = params.spec.model_dump()
+    for key, factor in changed.items():
+        section = "electrical" if key in ("phase_resistance", "back_emf_constant",
+                                          "phase_inductance") else "mechanical"
+        spec[section][key] *= factor
+    unit = derive(ParameterFile.model_validate(spec), "in memory")
+    hinge = 60.0
+    row = unit_row(unit.plant, hinge)
+    assert dict(zip(UNIT_COLUMNS, row))["hinge_moment"] == hinge
+
+    def fitness(units):
+        out = np.empty(rows.shape[0])
+        evaluate_population(rows, units, objective.inputs.drive(), params.plant, objective.options,
+                            objective.target, out)
+        return out
+
+    shared = fitness(row[None])
+    assert np.array_equal(shared, fitness(np.tile(row, (rows.shape[0], 1))))
+    assert not np.allclose(shared, objective(genes))  # the unit row does change the Monitor
+    from emaprog.faults import MonitorFaults
+
+    for j in range(rows.shape[0]):
+        run = monitor.run(unit, objective.inputs, MonitorFaults(*rows[j]), opts=objective.options,
+                          hinge_moment=hinge)
+        filtered = low_pass(run["current"], objective.filter_width)
+        t = objective.target
+        expected = (np.sum(t.sample_weight * (filtered - t.current) ** 2)
+                    / np.sum(t.sample_weight * t.current ** 2))
+        assert shared[j] == pytest.approx(expected, rel=1e-10)
