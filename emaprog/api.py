@@ -167,8 +167,9 @@ def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = 
         params = _parameters(parameters, embedded.parameters if embedded else None, relative,
                              f"{source} (embedded scenario)")
     settings = basis.identify if basis is not None else IdentifySettings()
-    check_sampling(measured, params, str(source))
-    inp = inputs_from_trace(measured, basis.load if basis is not None else None)
+    check_sampling(measured, str(source))
+    inp = inputs_from_trace(measured, params.spec.controller.rate,
+                            basis.load if basis is not None else None)
     result = identify_trace(measured, inp, params, settings, show_progress=show_progress)
 
     truth = flatten(embedded.faults) if embedded is not None else None
@@ -201,7 +202,8 @@ def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = 
     folder.mkdir(parents=True, exist_ok=True)
     identified = result.objective.simulate(result.estimate)
     figures = {
-        "fit": plot_fit(measured, identified, result.objective.filter_width, folder / "fit.png"),
+        "fit": plot_fit(measured, identified, result.objective.measured_width,
+                        result.objective.filter_width, folder / "fit.png"),
         "convergence": plot_convergence(result.logbook, folder / "convergence.png"),
     }
     data["figures"] = {name: path.name for name, path in figures.items()}

@@ -43,21 +43,26 @@ def plot_trace(trace: Trace, path: str | Path, title: str = "") -> Path:
     return path
 
 
-def plot_fit(trace: Trace, identified: dict[str, np.ndarray], filter_width: int,
-             path: str | Path) -> Path:
-    """Measured vs identified Monitor current (both low-passed as in the fitness) and position."""
+def plot_fit(trace: Trace, identified: dict[str, np.ndarray], measured_width: int,
+             model_width: int, path: str | Path) -> Path:
+    """Measured vs identified Monitor current (both over the fitness's 1 ms) and position.
+
+    The measurement is drawn at its own instants (relative to its first sample), the
+    Monitor on its controller grid (``identified["time"]``).
+    """
     from .identification.objective import low_pass
 
-    t = trace.time
+    t = trace.time - trace.time[0]
+    tm = identified["time"]
     fig, ax = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
-    ax[0].plot(t, low_pass(trace["current"], filter_width), lw=0.9, label="measured (1 ms mean)")
-    ax[0].plot(t, low_pass(identified["current"], filter_width), lw=0.9, ls="--",
+    ax[0].plot(t, low_pass(trace["current"], measured_width), lw=0.9, label="measured (1 ms mean)")
+    ax[0].plot(tm, low_pass(identified["current"], model_width), lw=0.9, ls="--",
                label="identified Monitor Model")
     ax[0].set_ylabel("equivalent current [A]")
     ax[0].legend(loc="upper right")
     ax[1].plot(t, trace["command"], lw=0.8, color="0.5", label="command")
     ax[1].plot(t, trace["position"], lw=0.9, label="measured")
-    ax[1].plot(t, identified["position"], lw=0.9, ls="--", label="identified Monitor Model")
+    ax[1].plot(tm, identified["position"], lw=0.9, ls="--", label="identified Monitor Model")
     ax[1].set_ylabel("surface position [rad]")
     ax[1].set_xlabel("time [s]")
     ax[1].legend(loc="upper right")

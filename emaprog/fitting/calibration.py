@@ -67,7 +67,7 @@ class Fit:
         sample_weight[: round(STARTUP_SECONDS * rate)] = 0.0
         zeros = np.zeros_like(current)
         self.target = ErrorTarget(current, zeros, zeros, np.array([1.0, 0.0, 0.0]), width,
-                                  sample_weight)
+                                  sample_weight, np.arange(current.size, dtype=np.int64), zeros)
 
     def __call__(self, rows: np.ndarray, opts: MonitorOptions) -> np.ndarray:
         """Error of each (m, 7) Monitor fault row under ``opts``."""

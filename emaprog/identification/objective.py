@@ -31,7 +31,7 @@ from ..faults import (
 from ..kernels.monitor import evaluate_population, moving_average
 from ..kernels.structs import ErrorTarget, unit_row
 from ..models import monitor, reference
-from ..models.common import Inputs
+from ..models.common import Inputs, recorded_instants
 from ..numerics import DEFAULT, Numerics
 from ..config.parameters import Parameters
 from ..config.scenario import IdentifySettings
@@ -122,18 +122,23 @@ class Objective:
         self.options = monitor.options(params, numerics)
         self.units = unit_row(params.plant)[None]
         self.eccentricity_gain = params.spec.monitor.eccentricity_gain
-        rate = params.spec.controller.rate
-        self.filter_width = max(1, round(FILTER_SECONDS * rate))
+        # the same 1 ms filter on both grids: the Monitor's (controller rate), the recording's
+        self.filter_width = max(1, round(FILTER_SECONDS * params.spec.controller.rate))
+        recording_rate = trace.sample_rate
+        self.measured_width = max(1, round(FILTER_SECONDS * recording_rate))
+        self.instants = recorded_instants(trace.time, inputs.time)
         n = trace.time.size
         targets = tuple(
-            low_pass(trace[name] - (discrepancy[name] if discrepancy else 0.0), self.filter_width)
+            low_pass(trace[name] - (self.instants.sample(discrepancy[name]) if discrepancy else 0.0),
+                     self.measured_width)
             for name in ("current", "position", "speed"))
         self.speed_limit = fit_speed_limit(settings, params)
-        sample_weight = sample_weights(low_pass(trace["speed"], self.filter_width),
-                                       self.speed_limit, min(round(STARTUP_SECONDS * rate), n // 10))
+        sample_weight = sample_weights(low_pass(trace["speed"], self.measured_width), self.speed_limit,
+                                       min(round(STARTUP_SECONDS * recording_rate), n // 10))
         w = settings.signals
         self.target = ErrorTarget(*targets, np.array([w.current, w.position, w.speed], dtype=np.float64),
-                                  self.filter_width, sample_weight)
+                                  self.filter_width, sample_weight, self.instants.index,
+                                  self.instants.fraction)
         self.lower = np.array([g.lower for g in self.genes])
         self.span = np.array([g.upper - g.lower for g in self.genes])
         self.circular = np.array([g.circular for g in self.genes])
@@ -193,7 +198,7 @@ class Objective:
 
 def nominal_discrepancy(inputs: Inputs, params: Parameters,
                         numerics: Numerics = DEFAULT) -> dict[str, np.ndarray]:
-    """Healthy Reference minus healthy Monitor, noise-free, on the same inputs."""
+    """Healthy Reference minus healthy Monitor, noise-free, on the same inputs (controller grid)."""
     ref, _ = reference.run(params, inputs, HEALTHY, with_noise=False, numerics=numerics)
     mon = monitor.run(params, inputs, monitor_form(healthy_values(), 1.0), numerics)
     return {name: ref[name] - mon[name] for name in ("current", "position", "speed")}

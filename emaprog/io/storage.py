@@ -95,16 +95,45 @@ def check_columns(raw: dict[str, Any], source: str | Path) -> dict[str, np.ndarr
         if not np.all(np.isfinite(values)):
             raise InputError(source, "column holds NaN or infinite values", name)
         columns[name] = values
-    t = columns["time"]
-    if t.size < 10:
-        raise InputError(source, f"only {t.size} samples; at least 10 are needed", "time")
-    dt = np.diff(t)
-    if np.any(dt <= 0):
-        raise InputError(source, "time must increase strictly from sample to sample", "time")
-    if np.max(np.abs(dt - np.median(dt))) > 1e-6 * np.median(dt) + 1e-12:
-        raise InputError(source, "samples must be uniformly spaced (one row per controller period)",
-                         "time")
+    check_time(columns["time"], source)
     return columns
+
+
+#: [-] Jitter of the sampling period allowed in a trace or recording (of the median period):
+#: the 1 ms error filter is a moving average over samples, so they must be evenly spaced.
+JITTER = 0.1
+
+
+def check_time(t: np.ndarray, source: str | Path, key: str = "time") -> None:
+    """Sample instants a trace may have: at least 10, strictly increasing, evenly spaced
+    within :data:`JITTER`, no gap. The message names the first offending row (0-based,
+    data rows) and its time."""
+    if t.size < 10:
+        raise InputError(source, f"only {t.size} samples; at least 10 are needed", key)
+    dt = np.diff(t)
+    period = float(np.median(dt))
+    if not period > 0:
+        raise InputError(source, "time must increase strictly from sample to sample", key)
+    # time going back or standing still is the first thing to say: it makes other spacings odd
+    bad = np.flatnonzero(dt <= 0)
+    if bad.size == 0:
+        bad = np.flatnonzero(np.abs(dt - period) > JITTER * period)
+    if bad.size == 0:
+        return
+    k = int(bad[0])
+    where = f"at row {k + 1} (time {t[k + 1]:.9g} s)"
+    if dt[k] == 0:
+        problem = (f"duplicated sample {where}: the same time as the row before; remove "
+                   "repeated rows from the recording")
+    elif dt[k] < 0:
+        problem = f"time must increase strictly from sample to sample; it goes back {where}"
+    elif dt[k] > 1.5 * period:
+        problem = (f"gap of {dt[k]:.6g} s {where} in a recording sampled every {period:.6g} s; "
+                   "identify a continuous stretch (cut the recording at the gap)")
+    else:
+        problem = (f"samples must be evenly spaced (within {JITTER:.0%} of the median period "
+                   f"{period:.6g} s); the spacing is {dt[k]:.6g} s {where}")
+    raise InputError(source, problem, key)
 
 
 def read_trace(path: str | Path) -> Trace:

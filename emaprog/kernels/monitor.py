@@ -393,7 +393,10 @@ def _candidate_fitness(row, unit, drive, plant, options, target, norms):
         moving_average(signals[s], target.filter_width, filtered)
         acc = 0.0
         measured = targets[s]
-        for k in range(n):
-            acc += target.sample_weight[k] * (filtered[k] - measured[k]) ** 2
+        for k in range(measured.size):
+            i = target.sample_index[k]
+            f = target.sample_fraction[k]
+            model = filtered[i] if f == 0.0 else filtered[i] + f * (filtered[i + 1] - filtered[i])
+            acc += target.sample_weight[k] * (model - measured[k]) ** 2
         total += target.weights[s] * acc / norms[s]
     return total

@@ -143,14 +143,22 @@ class MonitorOptions(NamedTuple):
 
 
 class ErrorTarget(NamedTuple):
-    """What a batch of Monitor runs is compared with (identification, calibration, commissioning)."""
+    """What a batch of Monitor runs is compared with (identification, calibration, commissioning).
 
-    current: np.ndarray  # (n,) [A] measured, low-passed with filter_width
-    position: np.ndarray  # (n,) [rad]
-    speed: np.ndarray  # (n,) [rad/s]
+    The measured signals are at the recording's own instants (n_rec of them, any
+    rate); the Monitor runs on the controller grid, is low-passed there with
+    ``filter_width`` and read at each recorded instant
+    ``(sample_index + sample_fraction) / rate`` by linear interpolation.
+    """
+
+    current: np.ndarray  # (n_rec,) [A] measured, low-passed over the same 1 ms
+    position: np.ndarray  # (n_rec,) [rad]
+    speed: np.ndarray  # (n_rec,) [rad/s]
     weights: np.ndarray  # (3,) [-] of the normalised current, position, speed errors
-    filter_width: int  # [samples] centred moving average applied to the Monitor's signals
-    sample_weight: np.ndarray  # (n,) [-] weight of each sample (0 leaves it out)
+    filter_width: int  # [grid samples] centred moving average applied to the Monitor's signals
+    sample_weight: np.ndarray  # (n_rec,) [-] weight of each sample (0 leaves it out)
+    sample_index: np.ndarray  # (n_rec,) int64, controller-grid sample at or before each instant
+    sample_fraction: np.ndarray  # (n_rec,) [-] in [0, 1): the way to the next grid sample
 
 
 # ---------------------------------------------------------------- outputs
