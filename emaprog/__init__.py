@@ -18,13 +18,14 @@ except PackageNotFoundError:  # running from a source tree that was never instal
     __version__ = "0+unknown"
 
 from .api import (  # noqa: E402 - __version__ first: the API stamps it on every result
-    Calibration, Report, SweepOutcome, Trend, calibrate, check, identify, simulate, sweep, trend,
+    Calibration, Commissioned, Report, SweepOutcome, Trend, calibrate, check, commission, convert,
+    identify, simulate, sweep, trend,
 )
 from .config.parameters import load as load_parameters  # noqa: E402
 from .config.scenario import load_scenario  # noqa: E402
 from .errors import InputError  # noqa: E402
 from .faults import CATALOGUE  # noqa: E402
 
-__all__ = ["CATALOGUE", "Calibration", "InputError", "Report", "SweepOutcome", "Trend",
-           "__version__", "calibrate", "check", "identify", "load_parameters", "load_scenario",
+__all__ = ["CATALOGUE", "Calibration", "Commissioned", "InputError", "Report", "SweepOutcome", "Trend",
+           "__version__", "calibrate", "check", "commission", "convert", "identify", "load_parameters", "load_scenario",
            "simulate", "sweep", "trend"]

@@ -138,9 +138,88 @@ def _trace_scenario(trace: Trace, source: str | Path) -> Scenario | None:
     return parse_scenario(data, f"{source} (embedded scenario)")
 
 
+def convert(recording: str | Path, columns: str | Path, *, parameters: str | Path | None = None,
+            output: str | Path | None = None) -> pd.DataFrame:
+    """A rig recording (CSV, MATLAB .mat, foreign Parquet) as a contract trace, via a column map.
+
+    Returns the trace as a DataFrame (units in ``attrs``); with ``output`` it is
+    written as contract Parquet whose provenance names the source file, its SHA-256
+    and the map. ``parameters`` (default ``default``) supplies the controller
+    replayed to sign an equivalent current built from phase currents.
+    """
+    from .io.recordings import load_column_map, read_recording
+
+    params = _parameters(parameters, None, None, "--parameters")
+    trace = read_recording(recording, load_column_map(columns), params, columns)
+    if output is not None:
+        write_trace(output, trace)
+    return frame_of(trace)
+
+
+@dataclass(frozen=True)
+class Commissioned:
+    """A commissioned unit: its parameter set file and what the recordings determined."""
+
+    parameter_set: Path
+    fitted: dict[str, dict[str, float]]  # name -> value, base, standard_error [SI]
+    not_determined: list[str]
+    degenerate: list[str]
+    hinge_moments: list[float]  # [N m] per recording
+    residual: float
+
+
+def commission(recordings: list[str | Path], output: str | Path, *,
+               parameters: str | Path | None = None, columns: str | Path | None = None) -> Commissioned:
+    """Fit a unit's own parameter set from recordings of it while healthy (SPEC 11).
+
+    ``recordings``: contract traces (Parquet) or, with ``columns``, rig recordings.
+    Writes ``output`` (a complete parameter set YAML with a ``commissioning`` section:
+    recordings and hashes, base set, fitted values with standard errors, residuals,
+    parameters held at the base value). The base set (``parameters``, default
+    ``default``) is never modified. Recordings that cannot commission raise InputError.
+    """
+    import datetime
+    import re
+
+    from .fitting import commission as commissioning
+
+    if not recordings:
+        raise InputError("commission", "give at least one recording of the healthy unit")
+    base = _parameters(parameters, None, None, "--parameters")
+    column_map = None
+    if columns is not None:
+        from .io.recordings import load_column_map
+
+        column_map = load_column_map(columns)
+    prepared = []
+    for path in map(Path, recordings):
+        if column_map is not None:
+            from .io.recordings import read_recording
+
+            trace = read_recording(path, column_map, base, columns)
+        else:
+            trace = read_trace(path)
+        check_sampling(trace, str(path))
+        prepared.append(commissioning.prepare(trace, str(path), base))
+    result = commissioning.fit(prepared, base)
+    commissioning.check_explained(result, prepared)
+    output = Path(output)
+    name = re.sub(r"[^A-Za-z0-9_-]", "-", output.stem) or "unit"
+    text = commissioning.unit_set(base, result, prepared, name, datetime.date.today().isoformat())
+    output.parent.mkdir(parents=True, exist_ok=True)
+    tmp = output.with_name(f".{output.name}.tmp")
+    tmp.write_text(text)
+    tmp.replace(output)
+    fitted = {k: {"value": result.values[k], "base": result.base[k], "standard_error": e}
+              for k, e in result.standard_errors.items()}
+    return Commissioned(output, fitted, result.not_determined, result.degenerate,
+                        result.hinge_moments, result.residual)
+
+
 def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = None,
-             parameters: str | Path | None = None, output: str | Path | None = None,
-             inspection: dict | None = None, show_progress: bool = False) -> Report:
+             parameters: str | Path | None = None, columns: str | Path | None = None,
+             output: str | Path | None = None, inspection: dict | None = None,
+             show_progress: bool = False) -> Report:
     """Identify the faults in a measured trace (a Parquet path or a DataFrame).
 
     Settings come from ``scenario`` when given, else from the scenario embedded in
@@ -148,17 +227,26 @@ def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = 
     (it overrides), else from that same scenario, else ``default``. Truth and
     error are reported when the trace carries its scenario (a simulated trace).
     ``inspection`` ({"actuator": ID, "usage": hours}) tags the report for
-    ``emaprog trend``. With ``output``, report.json, report.md and the figures
-    are written there.
+    ``emaprog trend``. ``columns`` (a column map YAML) reads ``trace`` as a rig
+    recording (CSV, MATLAB .mat, foreign Parquet; :mod:`emaprog.io.recordings`).
+    With ``output``, report.json, report.md and the figures are written there.
     """
+    chosen = load_scenario(scenario) if scenario is not None else None
     if isinstance(trace, pd.DataFrame):
         source: str | Path = "trace (DataFrame)"
         measured = trace_of(trace, source)
+    elif columns is not None:
+        from .io.recordings import load_column_map, read_recording
+
+        source = Path(trace)
+        named = chosen.parameters if chosen is not None else None
+        folder = Path(scenario).parent if chosen is not None else None
+        measured = read_recording(source, load_column_map(columns),
+                                  _parameters(parameters, named, folder, "--parameters"), columns)
     else:
         source = Path(trace)
         measured = read_trace(source)
     embedded = _trace_scenario(measured, source)
-    chosen = load_scenario(scenario) if scenario is not None else None
     basis = chosen or embedded
     if chosen is not None:
         params = _parameters(parameters, chosen.parameters, Path(scenario).parent, scenario)

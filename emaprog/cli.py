@@ -36,6 +36,11 @@ ScenarioOption = Annotated[
 ParametersOption = Annotated[
     str, typer.Option("--parameters", "-p", help="Parameter set: shipped name or path to a YAML file.")
 ]
+ColumnsOption = Annotated[
+    Optional[Path], typer.Option(
+        "--columns", "-c",
+        help="Column map YAML: read the trace as a rig recording (CSV, .mat, foreign Parquet).")
+]
 ParametersOverride = Annotated[
     Optional[str], typer.Option(
         "--parameters", "-p",
@@ -125,6 +130,53 @@ def simulate(
         typer.echo(f"plot: {output.with_suffix('.png')}")
 
 
+@app.command(epilog="Example: emaprog convert rig/run-12.csv --columns rig/logger.yaml -o out/run-12.parquet")
+@guarded
+def convert(
+    recording: Annotated[Path, typer.Argument(help="Rig recording: CSV, MATLAB .mat or Parquet.")],
+    columns: Annotated[Path, typer.Option("--columns", "-c", help="Column map YAML.")],
+    output: Annotated[Optional[Path], typer.Option("--output", "-o",
+                      help="Trace Parquet to write (default out/RECORDING.parquet).")] = None,
+    parameters: ParametersOverride = None,
+):
+    """Convert a rig recording into a contract trace (SI units, equivalent current, provenance)."""
+    from . import api
+
+    output = output or Path("out") / f"{recording.stem}.parquet"
+    frame = api.convert(recording, columns, parameters=parameters, output=output)
+    meta = frame.attrs["emaprog"]
+    typer.echo(f"{len(frame)} samples at {meta['sample_rate']:.6g} Hz; equivalent current: "
+               f"{meta['equivalent_current']}")
+    typer.echo(f"trace: {output}")
+
+
+@app.command(epilog="Example: emaprog commission rig/healthy-1.parquet rig/healthy-2.parquet "
+                    "-o units/ema-7.yaml")
+@guarded
+def commission(
+    recordings: Annotated[list[Path], typer.Argument(
+        help="Recordings of the unit while healthy (the standard test command).")],
+    output: Annotated[Path, typer.Option("--output", "-o", help="Unit parameter set YAML to write.")],
+    parameters: Annotated[Optional[str], typer.Option(
+        "--parameters", "-p", help="Base parameter set (shipped name or YAML path); default: default.")] = None,
+    columns: ColumnsOption = None,
+):
+    """Fit a unit's own parameter set (inertias, friction, viscous, R, k_e, L, stiffness)."""
+    from . import api
+
+    unit = api.commission(recordings, output, parameters=parameters, columns=columns)
+    for name, entry in unit.fitted.items():
+        typer.echo(f"  {name:24s} {entry['value']:.5g} (base {entry['base']:.5g}, "
+                   f"x{entry['value'] / entry['base']:.3f} +- {entry['standard_error'] / entry['base']:.1%})")
+    if unit.not_determined:
+        typer.echo(f"held at the base value (not determined): {', '.join(unit.not_determined)}")
+    for line in unit.degenerate:
+        typer.echo(f"weakly determined: {line}")
+    typer.echo("hinge moment per recording [N m]: "
+               + ", ".join(f"{h:.1f}" for h in unit.hinge_moments))
+    typer.echo(f"unit: {unit.parameter_set}")
+
+
 @app.command(epilog="Example: emaprog identify out/fig10.parquet -o out/fig10-report")
 @guarded
 def identify(
@@ -136,6 +188,7 @@ def identify(
     usage: Annotated[Optional[float], typer.Option(
         "--usage", min=0.0, help="Its usage at the recording [flight hours] (for `emaprog trend`).")] = None,
     parameters: ParametersOverride = None,
+    columns: ColumnsOption = None,
 ):
     """Identify fault magnitudes in a measured trace with the GA over the Monitor Model."""
     from . import api
@@ -144,7 +197,7 @@ def identify(
         raise InputError("--actuator/--usage", "give both (an inspection of one actuator at one "
                          "usage) or neither")
     inspection = {"actuator": actuator, "usage": usage} if actuator is not None else None
-    report = api.identify(trace, scenario=scenario, parameters=parameters,
+    report = api.identify(trace, scenario=scenario, parameters=parameters, columns=columns,
                           output=output or Path("out") / f"{trace.stem}-report",
                           inspection=inspection, show_progress=True)
     typer.echo(api.verdict_text(report))

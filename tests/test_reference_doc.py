@@ -61,7 +61,8 @@ def test_every_command_and_option_is_documented():
 
     text = REFERENCE.read_text()
     group = typer.main.get_command(app)
-    assert set(group.commands) == {"check", "simulate", "identify", "calibrate", "sweep", "trend"}
+    assert set(group.commands) == {"check", "simulate", "convert", "identify", "calibrate",
+                                   "commission", "sweep", "trend"}
     for name, command in group.commands.items():
         assert f"emaprog {name}" in text, name
         for param in command.params:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from importlib import resources
 from pathlib import Path
-from typing import Annotated, Literal, NamedTuple
+from typing import Annotated, Literal, NamedTuple, Optional
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model, model_validator
 
@@ -128,6 +128,40 @@ Health = create_model(
     **{f.name: (Threshold, Field(description=f.severity)) for f in CATALOGUE})
 
 
+class FittedValue(_Section):
+    """One commissioned parameter: its value, the base set's, and the standard error [its unit]."""
+
+    value: Pos
+    base: Pos
+    standard_error: NonNeg
+
+
+class CommissioningRecording(_Section):
+    """A healthy recording a unit was commissioned from."""
+
+    file: str
+    sha256: str
+    hinge_moment: Real = Field(description="[N m] constant hinge moment during the recording")
+    hinge_moment_standard_error: NonNeg = Field(description="[N m]")
+    residual: dict[str, NonNeg] = Field(description="RMS of the fit residual per signal over the "
+                                                    "RMS of the signal [-] (1 ms mean)")
+
+
+class Commissioning(_Section):
+    """Where a commissioned unit's values come from (written by `emaprog commission`)."""
+
+    date: str
+    emaprog_version: str
+    base: str = Field(description="the parameter set the unit was fitted from")
+    recordings: list[CommissioningRecording]
+    fitted: dict[str, FittedValue] = Field(description="parameters the recordings determined")
+    not_determined: list[str] = Field(description="parameters held at the base value: the "
+                                                  "recordings do not determine them")
+    degenerate: list[str] = Field(description="combinations of parameters the recordings "
+                                              "barely constrain, in words")
+    residual: NonNeg = Field(description="RMS of the whole normalised fit residual [-]")
+
+
 class ParameterFile(_Section):
     name: Annotated[str, Field(pattern=r"^[A-Za-z0-9_-]+$")]
     description: str
@@ -139,6 +173,8 @@ class ParameterFile(_Section):
     sensors: Sensors
     monitor: Monitor
     health: Health
+    commissioning: Optional[Commissioning] = Field(
+        None, description="a commissioned unit's provenance (emaprog commission)")
 
 
 # ---------------------------------------------------------------- kernel structs

@@ -75,6 +75,11 @@ def low_pass(x: np.ndarray, width: int) -> np.ndarray:
     return out
 
 
+def filter_lag(width: int, rate: float) -> float:
+    """How far before its sample the centred ``width``-sample moving average is centred [s]."""
+    return 0.5 / rate if width % 2 == 0 else 0.0
+
+
 def fit_speed_limit(settings: IdentifySettings, params: Parameters) -> float:
     """Motor speed above which samples are left out of the error [rad/s].
 
@@ -126,7 +131,12 @@ class Objective:
         self.filter_width = max(1, round(FILTER_SECONDS * params.spec.controller.rate))
         recording_rate = trace.sample_rate
         self.measured_width = max(1, round(FILTER_SECONDS * recording_rate))
-        self.instants = recorded_instants(trace.time, inputs.time)
+        # A moving average over an even number of samples is centred half a sample early:
+        # read the Monitor where its filtered value stands for the same instant as the
+        # measurement's (no shift when both grids are the same).
+        shift = (filter_lag(self.filter_width, params.spec.controller.rate)
+                 - filter_lag(self.measured_width, recording_rate))
+        self.instants = recorded_instants(trace.time, inputs.time, shift)
         n = trace.time.size
         targets = tuple(
             low_pass(trace[name] - (self.instants.sample(discrepancy[name]) if discrepancy else 0.0),

@@ -60,3 +60,17 @@ def sample_and_control(command, theta_s, omega_m, noise_position, noise_speed, p
     current_ref, position_int, speed_int = controller_update(
         command, position, speed, position_int, speed_int, plant.controller)
     return position, speed, current_ref, position_int, speed_int
+
+
+@njit(cache=True)
+def replay_controller(command, position, speed, ctrl, demand):
+    """The loops of :func:`controller_update` run on recorded (already measured) signals.
+
+    ``command``, ``position`` [rad], ``speed`` [rad/s] on the controller grid; writes the
+    current demand I_ref [A] of each period into ``demand``.
+    """
+    position_int = 0.0
+    speed_int = 0.0
+    for k in range(command.size):
+        demand[k], position_int, speed_int = controller_update(
+            command[k], position[k], speed[k], position_int, speed_int, ctrl)

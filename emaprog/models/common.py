@@ -68,16 +68,18 @@ class Instants(NamedTuple):
                         x[self.index] + self.fraction * (x[nxt] - x[self.index]))
 
 
-def recorded_instants(trace_time: np.ndarray, grid: np.ndarray) -> Instants:
-    """The :class:`Instants` of a trace's samples on a controller grid starting at 0."""
-    t_rec = np.asarray(trace_time, dtype=np.float64) - float(trace_time[0])
+def recorded_instants(trace_time: np.ndarray, grid: np.ndarray, shift: float = 0.0) -> Instants:
+    """The :class:`Instants` of a trace's samples, moved by ``shift`` [s], on a controller grid
+    starting at 0."""
+    t_rec = np.asarray(trace_time, dtype=np.float64) - float(trace_time[0]) + shift
     if grid.size == t_rec.size and np.array_equal(grid, t_rec):
         return Instants(np.arange(grid.size, dtype=np.int64), np.zeros(grid.size))
     period = grid[1] - grid[0]
-    position = t_rec / period
-    index = np.clip(np.floor(position + 1e-9).astype(np.int64), 0, grid.size - 1)
+    # instants outside the grid (a shift at either end) read its first or last sample
+    position = np.clip(t_rec / period, 0.0, grid.size - 1.0)
+    index = np.minimum(np.floor(position + 1e-9).astype(np.int64), grid.size - 1)
     fraction = np.clip(position - index, 0.0, 1.0)
-    fraction[np.abs(fraction) < 1e-9] = 0.0
+    fraction[(np.abs(fraction) < 1e-9) | (index == grid.size - 1)] = 0.0
     return Instants(index, fraction)
 
 

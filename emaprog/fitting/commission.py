@@ -1,0 +1,386 @@
+"""Commissioning: fit a unit's own parameter set to recordings of it while healthy.
+
+A real actuator is not the shipped parameter set: inertias, viscous and dry
+friction, winding resistance, back-EMF constant, inductance and stiffness vary
+from unit to unit, and every recording has its own constant hinge moment. The
+Monitor Model (healthy) is fitted to one or more recordings of the unit by
+bounded nonlinear least squares (:func:`scipy.optimize.least_squares`, trust
+region reflective) on the 1 ms-averaged current, position and speed, each over
+its own RMS, at the recorded instants.
+
+Unknowns: the natural logarithm of each parameter's factor on the base value
+(the static friction as dynamic friction times a ratio >= 1, so the Borello
+model stays valid), and per recording a constant hinge moment [N m] (an
+operating condition: reported, never stored as a parameter).
+
+Standard errors come from the Jacobian at the solution,
+``cov = s^2 (J^T J)^-1 x width`` with ``s^2`` the residual variance and the
+factor ``width`` (samples per 1 ms) for the correlation the moving average puts
+between neighbouring residuals. A parameter whose standard error exceeds
+:data:`MAX_LOG_ERROR` is not determined by the recordings: it is held at the base
+value and the fit is repeated without it (most uncertain first). The weakest
+direction of ``J^T J`` among the fitted parameters is reported when it is poorly
+constrained: e.g. the torque constant scales with the inertias, viscous,
+friction and hinge moment and leaves position, speed and current unchanged
+except through the back-EMF.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from ..config.parameters import Parameters
+from ..errors import InputError
+from ..faults import healthy_values, monitor_form
+from ..identification.objective import FILTER_SECONDS, STARTUP_SECONDS, filter_lag, low_pass
+from ..io.storage import Trace
+from ..kernels.monitor import simulate_monitor
+from ..kernels.structs import MonitorOutputs, Plant
+from ..models import monitor
+from ..models.common import Inputs, Instants, inputs_from_trace, recorded_instants
+
+
+class Unknown(NamedTuple):
+    """A unit parameter commissioning may fit: bounds of its factor on the base value."""
+
+    name: str
+    section: str  # "electrical" | "mechanical"
+    lower: float  # [-] factor on the base value
+    upper: float
+
+
+#: The unit-to-unit parameters, with plausible bounds (factor on the base value): wider
+#: than build tolerances (SPEC 11) so that a bound is never what stops the fit.
+UNKNOWNS = (
+    Unknown("motor_inertia", "mechanical", 0.6, 1.6),
+    Unknown("surface_inertia", "mechanical", 0.6, 1.6),
+    Unknown("motor_viscous", "mechanical", 0.2, 5.0),
+    Unknown("dynamic_friction", "mechanical", 0.4, 2.5),
+    Unknown("static_friction", "mechanical", 0.4, 2.5),  # fitted as dynamic x ratio (>= 1)
+    Unknown("phase_resistance", "electrical", 0.6, 1.6),
+    Unknown("back_emf_constant", "electrical", 0.85, 1.15),
+    Unknown("phase_inductance", "electrical", 0.6, 1.6),
+    Unknown("transmission_stiffness", "mechanical", 0.4, 2.0),
+)
+#: [-] standard error of a log factor above which a parameter counts as not determined
+#: (5 %: half the smallest build tolerance of SPEC 11 that matters, the inertias' 10 %).
+MAX_LOG_ERROR = 0.05
+#: Finite-difference step of the Jacobian (in log factor, and hinge moment / HINGE_SCALE).
+DIFF_STEP = 1e-4
+#: [-] ADC steps of the fed-back signals in the fitted Monitor, as a share of the real ones.
+#: With the real ADC the loop acts on quantised position and speed, which makes the residual
+#: a staircase in the parameters: finite differences below 1e-3 then measure its jumps
+#: (slopes growing as 1/step, measured 40-100x too large) and the fit stalls where it starts.
+#: Without it the slopes agree from 1e-5 to 1e-3; the quantisation itself (6e-5 rad,
+#: 0.12 rad/s at 14 bit) is far below what the unit parameters change.
+QUANTISATION = 1e-9
+HINGE_SCALE = 100.0  # [N m] hinge moments are fitted in this unit (conditioning)
+HINGE_BOUND = 3000.0  # [N m]
+MIN_DURATION = 0.2  # [s] shorter recordings do not excite the slow mechanical terms
+MIN_SPEED_SHARE = 0.05  # [-] of the speed limit: below it the motor barely moves
+#: [-] current residual RMS over the current RMS above which the Monitor does not
+#: explain the recording (noise-free twins: 0.4 %; noisy Reference traces 1-2 %)
+MAX_CURRENT_RESIDUAL = 0.10
+
+
+class Recording(NamedTuple):
+    """One healthy recording prepared for the fit."""
+
+    source: str
+    trace: Trace
+    inputs: Inputs
+    instants: Instants
+    measured: tuple[np.ndarray, np.ndarray, np.ndarray]  # 1 ms means: current, position, speed
+    scales: np.ndarray  # (3,) RMS of each measured signal over the fitted samples
+    mask: np.ndarray  # (n_rec,) bool: samples in the fit (after the start-up window)
+
+
+class Fit(NamedTuple):
+    """The outcome: every parameter's value [SI], standard errors, hinge moments, residuals."""
+
+    values: dict[str, float]  # fitted or held, SI
+    base: dict[str, float]
+    standard_errors: dict[str, float]  # SI, fitted parameters only
+    not_determined: list[str]
+    degenerate: list[str]
+    hinge_moments: list[float]  # [N m] per recording
+    hinge_errors: list[float]  # [N m]
+    residuals: list[dict[str, float]]  # per recording, per signal, relative RMS
+    residual: float  # RMS of the whole normalised residual
+    evaluations: int
+
+
+def prepare(trace: Trace, source: str, params: Parameters) -> Recording:
+    """Check a recording can commission (motion, length) and low-pass its signals."""
+    duration = float(trace.time[-1] - trace.time[0])
+    if duration < MIN_DURATION:
+        raise InputError(source, f"cannot commission from {duration:.3g} s: a recording of at "
+                         f"least {MIN_DURATION:g} s of the standard test command is needed to "
+                         "determine inertias, viscous and friction")
+    speed_limit = params.spec.controller.speed_limit
+    peak = float(np.max(np.abs(trace["speed"])))
+    if peak < MIN_SPEED_SHARE * speed_limit:
+        raise InputError(source, f"cannot commission: the motor barely moves (peak speed "
+                         f"{peak:.3g} rad/s, below {MIN_SPEED_SHARE:.0%} of the "
+                         f"{speed_limit:g} rad/s limit), so inertias, viscous, friction and the "
+                         "torque constant are not determined; record the standard test command "
+                         "(e.g. a 0.05 rad chirp, 0.5-10 Hz)", "speed")
+    rate = params.spec.controller.rate
+    inputs = inputs_from_trace(trace, rate)
+    width_model = max(1, round(FILTER_SECONDS * rate))
+    recording_rate = trace.sample_rate
+    width = max(1, round(FILTER_SECONDS * recording_rate))
+    instants = recorded_instants(trace.time, inputs.time,
+                                 filter_lag(width_model, rate) - filter_lag(width, recording_rate))
+    measured = tuple(low_pass(trace[name], width) for name in ("current", "position", "speed"))
+    mask = np.ones(trace.time.size, bool)
+    mask[: round(STARTUP_SECONDS * recording_rate)] = False
+    scales = np.array([max(float(np.sqrt(np.mean(m[mask] ** 2))), 1e-12) for m in measured])
+    return Recording(source, trace, inputs, instants, measured, scales, mask)
+
+
+class _Problem:
+    """The residual function of the fit over a chosen set of free unknowns."""
+
+    def __init__(self, recordings: list[Recording], params: Parameters, free: list[str]):
+        self.recordings, self.params, self.free = recordings, params, free
+        self.options = monitor.options(params)
+        self.faults = monitor_form(healthy_values(), params.spec.monitor.eccentricity_gain)
+        self.width = max(1, round(FILTER_SECONDS * params.spec.controller.rate))
+        m = params.spec.mechanical
+        self.base_ratio = m.static_friction / m.dynamic_friction
+        self.blocks = [int(r.mask.sum()) for r in recordings for _ in range(3)]
+        self.evaluations = 0
+
+    def plant(self, factors: dict[str, float]) -> Plant:
+        base = self.params.plant
+        e, m = base.electrical, base.mechanical
+        dynamic = m.dynamic_friction * factors["dynamic_friction"]
+        electrical = e._replace(**{u.name: getattr(e, u.name) * factors[u.name]
+                                   for u in UNKNOWNS if u.section == "electrical"})
+        mechanical = m._replace(**{u.name: getattr(m, u.name) * factors[u.name]
+                                   for u in UNKNOWNS if u.section == "mechanical"
+                                   and u.name != "static_friction"},
+                                static_friction=dynamic * self.base_ratio * factors["ratio"])
+        sensors = base.sensors._replace(position_lsb=base.sensors.position_lsb * QUANTISATION,
+                                        speed_lsb=base.sensors.speed_lsb * QUANTISATION,
+                                        current_lsb=base.sensors.current_lsb * QUANTISATION)
+        return Plant(electrical, mechanical, base.controller, sensors)
+
+    def factors(self, x: np.ndarray) -> dict[str, float]:
+        out = {u.name: 1.0 for u in UNKNOWNS}
+        out["ratio"] = 1.0  # of static/dynamic friction on the base set's ratio
+        for name, value in zip(self.free, x):
+            out[name] = math.exp(value)
+        return out
+
+    def hinges(self, x: np.ndarray) -> np.ndarray:
+        return HINGE_SCALE * np.asarray(x[len(self.free):])
+
+    def simulate(self, recording: Recording, plant: Plant, hinge: float) -> list[np.ndarray]:
+        n = recording.inputs.time.size
+        out = MonitorOutputs(np.empty(n), np.empty(n), np.empty(n), np.empty(n))
+        simulate_monitor(recording.inputs.drive(hinge), plant, self.faults, self.options, out)
+        return [recording.instants.sample(low_pass(signal, self.width))
+                for signal in (out.current, out.position, out.speed)]
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        self.evaluations += 1
+        plant = self.plant(self.factors(x))
+        parts = []
+        for recording, hinge in zip(self.recordings, self.hinges(x)):
+            model = self.simulate(recording, plant, float(hinge))
+            for s in range(3):
+                parts.append(((model[s] - recording.measured[s]) / recording.scales[s])[recording.mask])
+        return np.concatenate(parts)
+
+
+def _free_bounds(free: list[str], count: int, params: Parameters) -> tuple[np.ndarray, np.ndarray]:
+    by_name = {u.name: u for u in UNKNOWNS}
+    m = params.spec.mechanical
+    base_ratio = m.static_friction / m.dynamic_friction
+    lower, upper = [], []
+    for name in free:
+        if name == "ratio":  # static >= dynamic, at most 3 x dynamic
+            lower.append(math.log(1.0 / base_ratio))
+            upper.append(math.log(3.0 / base_ratio))
+        else:
+            lower.append(math.log(by_name[name].lower))
+            upper.append(math.log(by_name[name].upper))
+    lower += [-HINGE_BOUND / HINGE_SCALE] * count
+    upper += [HINGE_BOUND / HINGE_SCALE] * count
+    return np.array(lower), np.array(upper)
+
+
+def _solve(recordings, params, free, x0):
+    problem = _Problem(recordings, params, free)
+    lower, upper = _free_bounds(free, len(recordings), params)
+    result = least_squares(problem, np.clip(x0, lower, upper), bounds=(lower, upper),
+                           method="trf", diff_step=DIFF_STEP, x_scale=1.0, xtol=1e-8, ftol=1e-10,
+                           max_nfev=200)
+    jac = result.jac
+    dof = max(result.fun.size - jac.shape[1], 1)
+    s2 = float(result.fun @ result.fun) / dof
+    information = jac.T @ jac
+    cov = s2 * correlation_length(result.fun, problem.blocks) * _inverse(information)
+    return problem, result, cov, information
+
+
+def _inverse(information: np.ndarray) -> np.ndarray:
+    """(J^T J)^-1, with infinite variance along directions the data do not constrain at all
+    (a parameter that changes nothing, e.g. static friction when the motor never sticks)."""
+    eigenvalues, vectors = np.linalg.eigh(information)
+    floor = 1e-12 * max(float(eigenvalues.max()), 1e-300)
+    cov = (vectors / np.maximum(eigenvalues, floor)) @ vectors.T
+    blind = vectors[:, eigenvalues <= floor]
+    if blind.size:
+        touched = np.any(np.abs(blind) > 1e-3, axis=1)
+        cov[touched, touched] = np.inf
+    return cov
+
+
+def correlation_length(residual: np.ndarray, blocks: list[int]) -> float:
+    """Samples per independent residual: the integrated autocorrelation time [samples].
+
+    The residual of a fit to real data is not white: the 1 ms mean correlates
+    neighbours, and what the Monitor does not model (the Reference's switching, a
+    real unit's unmodelled effects) runs over many milliseconds. Standard errors
+    from ``s^2 (J^T J)^-1`` count every sample as independent and would be
+    optimistic by the square root of this length. Per block (recording x signal):
+    ``1 + 2 sum rho_k`` up to the first non-positive autocorrelation; the
+    mean over the blocks, weighted by their length.
+    """
+    lengths, weights = [], []
+    for part in np.split(residual, np.cumsum(blocks)[:-1]):
+        x = part - part.mean()
+        n = x.size
+        spectrum = np.fft.rfft(x, 2 * n)
+        acf = np.fft.irfft(spectrum * np.conj(spectrum))[:n]
+        if acf[0] <= 0:
+            continue
+        rho = acf / acf[0]
+        stop = np.flatnonzero(rho <= 0)
+        k = int(stop[0]) if stop.size else n
+        lengths.append(1.0 + 2.0 * float(np.sum(rho[1:k])))
+        weights.append(n)
+    return float(np.average(lengths, weights=weights)) if lengths else 1.0
+
+
+def fit(recordings: list[Recording], params: Parameters) -> Fit:
+    """Commission a unit from healthy recordings (module docstring); Fit with SI values."""
+    free = [u.name for u in UNKNOWNS if u.name != "static_friction"] + ["ratio"]
+    held: list[str] = []
+    x0 = np.zeros(len(free) + len(recordings))
+    evaluations = 0
+    while True:
+        problem, result, cov, information = _solve(recordings, params, free, x0)
+        evaluations += problem.evaluations
+        errors = np.sqrt(np.maximum(np.diag(cov)[: len(free)], 0.0))  # inf: not constrained
+        worst = int(np.argmax(errors)) if free else -1
+        if free and errors[worst] > MAX_LOG_ERROR:
+            name = free.pop(worst)
+            held.append("static_friction" if name == "ratio" else name)
+            x0 = np.delete(result.x, worst)
+            continue
+        break
+    factors = problem.factors(result.x)
+    plant = problem.plant(factors)
+    values = {u.name: float(getattr(getattr(plant, u.section), u.name)) for u in UNKNOWNS}
+    base = {u.name: float(getattr(getattr(params.plant, u.section), u.name)) for u in UNKNOWNS}
+    standard_errors = {}
+    for k, name in enumerate(free):
+        target = "static_friction" if name == "ratio" else name
+        log_error = math.sqrt(max(cov[k, k], 0.0))
+        if name == "ratio":  # static = dynamic x ratio: both log errors add (correlation kept)
+            j = free.index("dynamic_friction") if "dynamic_friction" in free else None
+            variance = cov[k, k] + (cov[j, j] + 2 * cov[j, k] if j is not None else 0.0)
+            log_error = math.sqrt(max(variance, 0.0))
+        standard_errors[target] = values[target] * log_error
+    degenerate = _weak_directions(free, information, cov)
+    hinge_cov = np.diag(cov)[len(free):]
+    residuals, parts = [], np.split(result.fun, np.cumsum([3 * r.mask.sum() for r in recordings])[:-1])
+    for recording, part in zip(recordings, parts):
+        per_signal = np.split(part, 3)
+        residuals.append({name: float(np.sqrt(np.mean(p ** 2)))
+                          for name, p in zip(("current", "position", "speed"), per_signal)})
+    return Fit(values, base, standard_errors, held, degenerate,
+               [float(h) for h in problem.hinges(result.x)],
+               [float(HINGE_SCALE * math.sqrt(max(v, 0.0))) for v in hinge_cov],
+               residuals, float(np.sqrt(np.mean(result.fun ** 2))), evaluations)
+
+
+def _weak_directions(free: list[str], information: np.ndarray, cov: np.ndarray) -> list[str]:
+    """The least constrained combination of the fitted parameters, in words, if it is weak."""
+    n = len(free)
+    if n < 2:
+        return []
+    block = information[:n, :n]
+    eigenvalues, vectors = np.linalg.eigh(block)
+    v = vectors[:, 0]
+    spread = float(np.sqrt(max(v @ cov[:n, :n] @ v, 0.0)))
+    if spread <= MAX_LOG_ERROR / 2:
+        return []
+    order = np.argsort(-np.abs(v))[:4]
+    terms = ", ".join(f"{'+' if v[i] > 0 else '-'}{abs(v[i]):.2f} {free[i]}" for i in order
+                      if abs(v[i]) > 0.1)
+    return [f"log-factors along ({terms}) are determined to {spread:.1%} only (1 sigma)"]
+
+
+def check_explained(fit_result: Fit, recordings: list[Recording]) -> None:
+    """Refuse a commissioning whose Monitor does not explain a recording (exit 2)."""
+    for recording, residual in zip(recordings, fit_result.residuals):
+        if residual["current"] > MAX_CURRENT_RESIDUAL:
+            raise InputError(recording.source, "cannot commission: after the fit the healthy "
+                             f"Monitor still misses {residual['current']:.0%} of the current's RMS "
+                             f"(at most {MAX_CURRENT_RESIDUAL:.0%}); is the unit healthy, the "
+                             "recording of this actuator, and the column map right?", "current")
+
+
+def unit_set(base: Parameters, fit_result: Fit, recordings: list[Recording], name: str,
+             date: str) -> str:
+    """The commissioned unit as a complete parameter-set YAML text (checked to load)."""
+    import hashlib
+
+    import yaml
+
+    from .. import __version__
+    from ..config.parameters import ParameterFile
+    from ..config.yamlfile import parse_mapping
+
+    spec = base.spec.model_dump(mode="json")
+    for u in UNKNOWNS:
+        spec[u.section][u.name] = float(fit_result.values[u.name])
+    fitted = {u.name: {"value": fit_result.values[u.name], "base": fit_result.base[u.name],
+                       "standard_error": fit_result.standard_errors[u.name]}
+              for u in UNKNOWNS if u.name in fit_result.standard_errors}
+    sources = [{"file": r.source,
+                "sha256": hashlib.sha256(Path(r.source).read_bytes()).hexdigest()
+                if Path(r.source).is_file() else "",
+                "hinge_moment": h, "hinge_moment_standard_error": e, "residual": res}
+               for r, h, e, res in zip(recordings, fit_result.hinge_moments,
+                                       fit_result.hinge_errors, fit_result.residuals)]
+    spec.update(
+        name=name,
+        description=f"Unit commissioned on {date} from {len(recordings)} healthy recording(s); "
+                    f"base set '{base.spec.name}'.",
+        source=f"emaprog commission {__version__}: the base set's values, with those the "
+               "recordings determine fitted by bounded least squares of the healthy Monitor "
+               "Model (see commissioning).",
+        changes=[*base.spec.changes, f"commissioned on {date}: "
+                 + ", ".join(f"{k} x{fit_result.values[k] / fit_result.base[k]:.3f}"
+                             for k in fitted)
+                 + (f"; held at base: {', '.join(fit_result.not_determined)}"
+                    if fit_result.not_determined else "")],
+        commissioning={"date": date, "emaprog_version": __version__, "base": base.source_file,
+                       "recordings": sources, "fitted": fitted,
+                       "not_determined": fit_result.not_determined,
+                       "degenerate": fit_result.degenerate, "residual": fit_result.residual},
+    )
+    text = yaml.safe_dump(spec, sort_keys=False, width=100)
+    ParameterFile.model_validate(parse_mapping(text, name))  # loadable, or an internal error
+    return text
