@@ -268,6 +268,7 @@ def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = 
         "error": nested(error) if error is not None else None,
         "health": verdicts.health(result.estimate, settings.estimate, params),
         f"{PHASE_FAULT}_phase": worst_phase(result.estimate),
+        "nuisance": {name: result.estimate[name] for name in settings.nuisances},
         "fitness": result.fitness,
         "ga": {"estimate": nested(result.ga_estimate), "fitness": result.ga_fitness,
                "generations": result.generations, "stopped_by": result.stopped_by,

@@ -170,6 +170,27 @@ class GASettings(Strict):
     seed: Annotated[int, Field(strict=True, ge=0, le=2**32 - 1)] = 1
 
 
+NuisanceName = Literal["hinge_moment", "resistance_factor"]
+
+
+class NuisanceBounds(Strict):
+    hinge_moment: tuple[float, float] = Field(
+        (-500.0, 500.0), description="[N m] constant hinge moment, within [-5000, 5000]")
+    resistance_factor: tuple[float, float] = Field(
+        (0.8, 1.3), description="[-] winding resistance over the set's (temperature), within [0.5, 2]")
+
+    @field_validator("hinge_moment", "resistance_factor")
+    @classmethod
+    def _check(cls, value: tuple[float, float], info: ValidationInfo):
+        lo, hi = value
+        low, high = {"hinge_moment": (-5000.0, 5000.0), "resistance_factor": (0.5, 2.0)}[info.field_name]
+        if not (math.isfinite(lo) and math.isfinite(hi)) or not lo < hi:
+            raise ValueError(f"need finite bounds, lower below upper (got {lo}, {hi})")
+        if lo < low or hi > high:
+            raise ValueError(f"bounds must lie within [{low}, {high}]")
+        return value
+
+
 class IdentifySettings(Strict):
     estimate: list[FaultName] = Field(default_factory=lambda: list(FAULT_NAMES))
     bounds: Bounds = Bounds()
@@ -180,6 +201,10 @@ class IdentifySettings(Strict):
                              description="[rad/s] motor speed above which samples are left "
                                          "out of the error; omitted: 40 % of the DC bus as "
                                          "pair back-EMF")] = None
+    nuisances: list[NuisanceName] = Field(
+        default_factory=list, description="operating conditions estimated beside the faults and "
+                                          "reported under `nuisance`, never given a verdict")
+    nuisance_bounds: NuisanceBounds = NuisanceBounds()
     nominal_correction: bool = Field(
         True, description="subtract the healthy Reference-Monitor difference from the measured "
                           "signals before fitting (see emaprog.identification.objective)")

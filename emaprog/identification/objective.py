@@ -28,7 +28,9 @@ import numpy as np
 from ..faults import (
     CATALOGUE, HEALTHY, QUANTITIES, ZETA_COLUMN, MonitorFaults, healthy_values, monitor_form,
 )
-from ..kernels.monitor import evaluate_population, moving_average
+from ..kernels.monitor import (
+    U_HINGE_MOMENT, U_PHASE_RESISTANCE, evaluate_population, moving_average, unit_plant,
+)
 from ..kernels.structs import ErrorTarget, unit_row
 from ..models import monitor, reference
 from ..models.common import Inputs, recorded_instants
@@ -51,6 +53,10 @@ class Gene(NamedTuple):
     circular: bool
 
 
+#: Operating conditions that can be estimated beside the faults: their value when not.
+NUISANCE_DEFAULTS = {"hinge_moment": 0.0, "resistance_factor": 1.0}
+
+
 def genes_of(settings: IdentifySettings) -> list[Gene]:
     """The genes to search, in :data:`~emaprog.faults.QUANTITIES` order.
 
@@ -66,6 +72,10 @@ def genes_of(settings: IdentifySettings) -> list[Gene]:
                 genes.append(Gene(q.name, 0.0, TWO_PI, True))
             else:
                 genes.append(Gene(q.name, float(lo), float(hi), False))
+    for name in NUISANCE_DEFAULTS:
+        if name in settings.nuisances:
+            lo, hi = getattr(settings.nuisance_bounds, name)
+            genes.append(Gene(name, float(lo), float(hi), False))
     return genes
 
 
@@ -159,8 +169,9 @@ class Objective:
         return len(self.genes)
 
     def values(self, genes: np.ndarray) -> dict[str, float]:
-        """All seven fault quantities of one gene row (healthy where not estimated)."""
-        out = healthy_values()
+        """All fault quantities and nuisances of one gene row (healthy / default where not
+        estimated)."""
+        out = {**healthy_values(), **NUISANCE_DEFAULTS}
         for gene, x in zip(self.genes, np.asarray(genes, float)):
             if gene.circular:
                 out[gene.quantity] = float((x % 1.0) * TWO_PI)
@@ -170,6 +181,7 @@ class Objective:
 
     def genes_for(self, values: dict[str, float]) -> np.ndarray:
         """Inverse of :meth:`values` (clipped into the bounds)."""
+        values = {**NUISANCE_DEFAULTS, **values}
         return np.array([
             (values[g.quantity] / TWO_PI) % 1.0 if g.circular
             else min(max((values[g.quantity] - g.lower) / (g.upper - g.lower), 0.0), 1.0)
@@ -182,17 +194,34 @@ class Objective:
         rows = np.tile(np.asarray(HEALTHY, float), (genes.shape[0], 1))
         index = {name: k for k, name in enumerate(QUANTITIES)}
         for j, gene in enumerate(self.genes):
+            if gene.quantity in NUISANCE_DEFAULTS:
+                continue
             col = genes[:, j]
             k = index[gene.quantity]
             rows[:, k] = (col % 1.0) * TWO_PI if gene.circular else self.lower[j] + np.clip(col, 0, 1) * self.span[j]
         rows[:, ZETA_COLUMN] *= self.eccentricity_gain
         return np.ascontiguousarray(rows)
 
+    def unit_rows(self, genes: np.ndarray) -> np.ndarray:
+        """(m, 10) unit rows: the set's plant with each candidate's nuisances, or (1, 10)."""
+        genes = np.atleast_2d(genes)
+        nuisances = [(j, g) for j, g in enumerate(self.genes) if g.quantity in NUISANCE_DEFAULTS]
+        if not nuisances:
+            return self.units
+        units = np.tile(self.units[0], (genes.shape[0], 1))
+        for j, gene in nuisances:
+            value = self.lower[j] + np.clip(genes[:, j], 0, 1) * self.span[j]
+            if gene.quantity == "hinge_moment":
+                units[:, U_HINGE_MOMENT] = value
+            else:
+                units[:, U_PHASE_RESISTANCE] = self.units[0, U_PHASE_RESISTANCE] * value
+        return units
+
     def __call__(self, genes: np.ndarray) -> np.ndarray:
         rows = self.kernel_rows(genes)
         fitness = np.empty(rows.shape[0])
-        evaluate_population(rows, self.units, self.inputs.drive(), self.params.plant, self.options,
-                            self.target, fitness)
+        evaluate_population(rows, self.unit_rows(genes), self.inputs.drive(), self.params.plant,
+                            self.options, self.target, fitness)
         self.evaluations += rows.shape[0]
         return fitness
 
@@ -201,9 +230,15 @@ class Objective:
 
     def simulate(self, values: dict[str, float]) -> dict[str, np.ndarray]:
         """Monitor columns for one set of fault values (for figures)."""
-        faults = (MonitorFaults(*self.kernel_rows(self.genes_for(values))[0].tolist()) if self.genes
-                  else monitor_form(healthy_values(), self.eccentricity_gain))
-        return monitor.run(self.params, self.inputs, faults, opts=self.options)
+        if not self.genes:
+            return monitor.run(self.params, self.inputs,
+                               monitor_form(healthy_values(), self.eccentricity_gain), opts=self.options)
+        genes = self.genes_for(values)
+        faults = MonitorFaults(*self.kernel_rows(genes)[0].tolist())
+        unit = self.unit_rows(genes)[0]
+        return monitor.run(self.params, self.inputs, faults, opts=self.options,
+                           hinge_moment=float(unit[U_HINGE_MOMENT]),
+                           plant=unit_plant(self.params.plant, unit))
 
 
 def nominal_discrepancy(inputs: Inputs, params: Parameters,

@@ -9,7 +9,7 @@ from ..kernels.monitor import (
     ECCENTRICITY_PAIR, ECCENTRICITY_PAPER, SHORT_CIRCUIT_AVERAGED, SHORT_CIRCUIT_MODULATED,
     simulate_monitor,
 )
-from ..kernels.structs import MonitorOptions, MonitorOutputs
+from ..kernels.structs import MonitorOptions, MonitorOutputs, Plant
 from ..numerics import DEFAULT, Numerics
 from ..config.parameters import Parameters
 from ..config.scenario import Scenario
@@ -30,15 +30,17 @@ def options(params: Parameters, numerics: Numerics = DEFAULT) -> MonitorOptions:
 
 
 def run(params: Parameters, inp: Inputs, faults: MonitorFaults, numerics: Numerics = DEFAULT,
-        opts: MonitorOptions | None = None, hinge_moment: float = 0.0) -> dict[str, np.ndarray]:
+        opts: MonitorOptions | None = None, hinge_moment: float = 0.0,
+        plant: Plant | None = None) -> dict[str, np.ndarray]:
     """Run the Monitor kernel (eccentricity as Z); returns trace columns.
 
     ``opts`` overrides the options of ``params`` and ``numerics`` (calibration);
-    ``hinge_moment`` [N m] is added to the inputs' load.
+    ``hinge_moment`` [N m] is added to the inputs' load; ``plant`` replaces the set's
+    (a unit row applied with :func:`~emaprog.kernels.monitor.unit_plant`).
     """
     n = inp.time.size
     out = MonitorOutputs(np.empty(n), np.empty(n), np.empty(n), np.empty(n))
-    simulate_monitor(inp.drive(hinge_moment), params.plant, faults,
+    simulate_monitor(inp.drive(hinge_moment), plant if plant is not None else params.plant, faults,
                      opts if opts is not None else options(params, numerics), out)
     return {"time": inp.time, "command": inp.command, **out._asdict()}
 
