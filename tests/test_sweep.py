@@ -341,3 +341,50 @@ def test_sweep_workers_import_no_plotting_library():
             "print(sorted(m for m in sys.modules if m.split('.')[0] == 'matplotlib'))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]", out.stdout
+
+
+def test_unit_spread_and_hinge_moment_draws_keep_old_campaigns_and_stay_in_range():
+    """actuator_spread / hinge_moment draws come after every earlier draw of a case: a
+    campaign without them samples exactly the faults and seeds it did before; with them
+    each factor and hinge moment lies in its range, and the case's unit is that set."""
+    from emaprog.campaign.cases import case_specs, sample_case, sample_unit
+    from emaprog.config.scenario import load_campaign
+
+    quick, base = load_campaign(ROOT / "campaigns" / "quick.yaml")
+    robust, _ = load_campaign(ROOT / "campaigns" / "robustness.yaml")
+    same_seed = robust.model_copy(update={"seed": quick.seed, "faults": quick.faults})
+    for k in range(20):
+        assert sample_case(quick, k) == sample_case(same_seed, k)
+        factors, hinge, commissioning = sample_unit(quick, k)
+        assert set(factors.values()) == {1.0} and hinge == 0.0
+        factors, hinge, commissioning = sample_unit(robust, k)
+        for name, factor in factors.items():
+            lo, hi = getattr(robust.actuator_spread, name).uniform
+            assert 1.0 + lo <= factor <= 1.0 + hi
+        assert -100.0 <= hinge <= 100.0 and -100.0 <= commissioning.hinge_moment <= 100.0
+    from emaprog.config import parameters
+
+    params = parameters.load("default")
+    spec = next(case_specs(robust, base, params, "h", [3]))
+    factors, hinge, _ = sample_unit(robust, 3)
+    assert spec.hinge_moment == hinge and spec.commission is not None
+    assert spec.unit.spec.mechanical.motor_inertia == pytest.approx(
+        params.spec.mechanical.motor_inertia * factors["motor_inertia"], rel=1e-12)
+
+
+@pytest.mark.slow
+def test_a_spread_unit_is_commissioned_and_identified_inside_its_case(tmp_path):
+    """One robustness case end to end (spread unit, unknown hinge moment, commissioning from
+    its own healthy recording, nuisances): the case row carries the commissioning errors,
+    the estimated hinge moment within 5 N m, and friction within SPEC 10's 5 %."""
+    data = yaml.safe_load((ROOT / "campaigns" / "robustness.yaml").read_text())
+    data.update(cases=1, seed=11, scenario=str(ROOT / "configs" / "chirp-nominal.yaml"),
+                faults={**data["faults"], "healthy_fraction": 0.0})
+    path = tmp_path / "one.yaml"
+    path.write_text(yaml.safe_dump(data))
+    outcome = api.sweep(path, tmp_path / "out", workers=1)
+    row = outcome.cases.iloc[0]
+    assert abs(row["est_hinge_moment"] - row["true_hinge_moment"]) < 5.0
+    assert abs(row["commission_err_back_emf_constant"]) < 0.03
+    assert abs(row["err_friction"] / row["true_friction"]) < 0.05
+    assert outcome.summary["commissioning"]["back_emf_constant"]["n"] == 1

@@ -46,11 +46,12 @@ from ..faults import (
     CATALOGUE, FAULT_NAMES, PHASE_FAULT, PHASES, QUANTITIES, Fault, flatten, worst_phase,
 )
 from ..identification import identify_trace
+from ..identification.objective import NUISANCE_DEFAULTS
 from ..identification import result as verdicts
 from ..models import reference
 from ..models.common import inputs
 from ..config.parameters import Parameters
-from ..config.scenario import Campaign, Faults, IdentifySettings, Scenario
+from ..config.scenario import SPREAD_PARAMETERS, Campaign, Faults, IdentifySettings, Scenario
 from ..io.storage import write_json
 
 SEED_LIMIT = 2**32  # scenario and GA seeds are uint32
@@ -58,15 +59,25 @@ CASE_FILE = "case-{:06d}"
 
 
 # ---------------------------------------------------------------- sampling
+class Commissioning(NamedTuple):
+    """A case's healthy commissioning recording: its noise seed and hinge moment."""
+
+    seed: int
+    hinge_moment: float  # [N m]
+
+
 class CaseSpec(NamedTuple):
     """Everything a worker needs to run one case; picklable, no open files."""
 
     case_id: int
     healthy: bool  # sampled as an all-healthy case (false-alarm check)
     scenario: Scenario  # base scenario with this case's faults and noise seed
-    params: Parameters
+    params: Parameters  # the set identification starts from (the shipped one)
     settings: IdentifySettings  # with this case's GA seed
     campaign_hash: str
+    unit: Parameters | None = None  # the case's own unit (actuator_spread), None: params
+    hinge_moment: float = 0.0  # [N m] unknown to the identification
+    commission: Commissioning | None = None  # commission the unit first (campaign commission)
 
 
 def identify_settings(campaign: Campaign, base: Scenario) -> IdentifySettings:
@@ -125,14 +136,42 @@ def sample_case(campaign: Campaign, case_id: int) -> tuple[bool, Faults, int, in
     return False, faults, noise_seed, ga_seed
 
 
+def sample_unit(campaign: Campaign, case_id: int) -> tuple[dict[str, float], float, Commissioning]:
+    """Case ``case_id``'s unit factors, hinge moment and commissioning recording.
+
+    Drawn from the same stream as :func:`sample_case`, after all of its draws, every
+    draw made whether or not its distribution is given: a campaign without spread keeps
+    exactly the cases it had before these keys existed.
+    """
+    rng = np.random.default_rng(np.random.SeedSequence(campaign.seed, spawn_key=(case_id,)))
+    rng.random()
+    for fault in CATALOGUE:
+        _draw(fault.layout, rng)
+    rng.integers(0, SEED_LIMIT, size=2)
+    spread = {name: rng.random() for name in SPREAD_PARAMETERS}
+    hinge_u, commission_hinge_u = rng.random(), rng.random()
+    commission_seed = int(rng.integers(0, SEED_LIMIT))
+    factors = {name: 1.0 + _scaled(getattr(campaign.actuator_spread, name), u, 0.0)
+               for name, u in spread.items()}
+    hinge = _scaled(campaign.hinge_moment, hinge_u, 0.0)
+    return factors, hinge, Commissioning(commission_seed,
+                                         _scaled(campaign.hinge_moment, commission_hinge_u, 0.0))
+
+
 def case_specs(campaign: Campaign, base: Scenario, params: Parameters, campaign_hash: str,
                case_ids: Iterable[int]) -> Iterator[CaseSpec]:
     """The specs of the given cases (lazily: a large campaign is never all in memory)."""
     settings = identify_settings(campaign, base)
     for case_id in case_ids:
         healthy, faults, noise_seed, ga_seed = sample_case(campaign, case_id)
-        yield make_spec(case_id, healthy, f"{campaign.name}-case-{case_id}", base, faults,
-                        noise_seed, ga_seed, settings, params, campaign_hash)
+        spec = make_spec(case_id, healthy, f"{campaign.name}-case-{case_id}", base, faults,
+                         noise_seed, ga_seed, settings, params, campaign_hash)
+        factors, hinge, commissioning = sample_unit(campaign, case_id)
+        spread = {k: f for k, f in factors.items() if f != 1.0}
+        unit = (parameter_sets.scaled(params, spread, f"{campaign.name}-case-{case_id} unit")
+                if spread else None)
+        yield spec._replace(unit=unit, hinge_moment=hinge,
+                            commission=commissioning if campaign.commission else None)
 
 
 def make_spec(case_id: int, healthy: bool, name: str, base: Scenario, faults: Faults,
@@ -151,13 +190,55 @@ def make_spec(case_id: int, healthy: bool, name: str, base: Scenario, faults: Fa
 
 
 # ---------------------------------------------------------------- one case
+def with_hinge(scenario: Scenario, hinge_moment: float) -> Scenario:
+    """The scenario with a constant hinge moment [N m] added to its load."""
+    if hinge_moment == 0.0:
+        return scenario
+    load = scenario.load.model_dump(mode="json")
+    if load["kind"] == "none":
+        load = {"kind": "constant", "torque": 0.0}
+    load["torque"] = load["torque"] + hinge_moment
+    return Scenario.model_validate({**scenario.model_dump(mode="json"), "load": load})
+
+
+def commission_case(spec: CaseSpec, unit: Parameters) -> tuple[Parameters, dict]:
+    """Commission the case's unit from its own healthy recording; (the set, row columns)."""
+    from ..fitting import commission as commissioning
+
+    healthy = Scenario.model_validate({**spec.scenario.model_dump(mode="json"),
+                                       "faults": Faults().model_dump(mode="json"),
+                                       "seed": spec.commission.seed})
+    recording = reference.simulate(with_hinge(healthy, spec.commission.hinge_moment), unit)
+    prepared = commissioning.prepare(recording, f"case {spec.case_id} commissioning", spec.params)
+    fit = commissioning.fit([prepared], spec.params)
+    commissioning.check_explained(fit, [prepared])
+    commissioned = parameter_sets.scaled(
+        spec.params, {k: fit.values[k] / fit.base[k] for k in fit.values},
+        f"case {spec.case_id} commissioned unit")
+    true = {**unit.spec.electrical.model_dump(), **unit.spec.mechanical.model_dump()}
+    row = {f"commission_err_{k}": float(v / true[k] - 1.0) for k, v in fit.values.items()}
+    row["commission_err_hinge_moment"] = float(fit.hinge_moments[0] - spec.commission.hinge_moment)
+    row["commission_undetermined"] = ",".join(fit.not_determined)
+    return commissioned, row
+
+
 def run_case(spec: CaseSpec) -> dict:
-    """Simulate and identify one case; the SPEC 6 row (plain Python values)."""
+    """Simulate and identify one case; the SPEC 6 row (plain Python values).
+
+    The trace is the case's unit (``spec.unit``) under its hinge moment; the
+    identification knows neither: it starts from ``spec.params`` (or the unit it
+    commissions first) and the base scenario's load.
+    """
     start = time.perf_counter()
-    trace = reference.simulate(spec.scenario, spec.params)
+    unit = spec.unit if spec.unit is not None else spec.params
+    trace = reference.simulate(with_hinge(spec.scenario, spec.hinge_moment), unit)
     simulated = time.perf_counter()
-    inp = inputs(spec.scenario, spec.params)
-    result = identify_trace(trace, inp, spec.params, spec.settings, show_progress=False)
+    params, commission_row = spec.params, {}
+    if spec.commission is not None:
+        params, commission_row = commission_case(spec, unit)
+    commissioned = time.perf_counter()
+    inp = inputs(spec.scenario, params)
+    result = identify_trace(trace, inp, params, spec.settings, show_progress=False)
     truth = flatten(spec.scenario.faults)
     error = verdicts.errors(result.estimate, truth)
     health = verdicts.health(result.estimate, spec.settings.estimate, spec.params)
@@ -183,7 +264,12 @@ def run_case(spec: CaseSpec) -> dict:
         "generations": int(result.generations),
         "simulate_s": simulated - start,
         "identify_s": result.elapsed_s,
+        "true_hinge_moment": float(spec.hinge_moment),
+        **{f"est_{name}": float(result.estimate[name]) if name in spec.settings.nuisances
+           else float("nan") for name in NUISANCE_DEFAULTS},
     })
+    if spec.commission is not None:
+        row.update(commission_row, commission_s=commissioned - simulated)
     return row
 
 

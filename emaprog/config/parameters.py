@@ -262,3 +262,16 @@ def load(name_or_path: str = "default", relative_to: Path | None = None,
     except ValidationError as exc:
         raise from_validation_error(path, exc, ParameterFile) from None
     return derive(spec, str(path))
+
+
+def scaled(params: Parameters, factors: dict[str, float], source: str) -> Parameters:
+    """The set with some electrical or mechanical values multiplied by ``factors`` [-]
+    (a unit off the set by build tolerances); checked like a file."""
+    spec = params.spec.model_dump(mode="json")
+    for name, factor in factors.items():
+        section = "electrical" if name in spec["electrical"] else "mechanical"
+        spec[section][name] *= factor
+    try:
+        return derive(ParameterFile.model_validate(spec), source)
+    except ValidationError as exc:
+        raise from_validation_error(source, exc, ParameterFile) from None

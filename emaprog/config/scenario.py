@@ -16,6 +16,7 @@ from pydantic import (BaseModel, ConfigDict, Field, ValidationError, ValidationI
 
 from ..errors import from_validation_error
 from ..faults import CATALOGUE, FAULT_NAMES, FAULTS, Fault, Quantity
+from ..kernels.structs import UNIT_COLUMNS
 from .yamlfile import load_mapping
 
 TWO_PI = 2.0 * math.pi
@@ -325,6 +326,23 @@ FaultDistributions = create_model(
     **{f.name: (Optional[DISTRIBUTION[f.layout]], None) for f in CATALOGUE})
 
 
+#: Parameters a campaign may spread from unit to unit (relative changes of the set's values).
+SPREAD_PARAMETERS = tuple(name for name in UNIT_COLUMNS if name != "hinge_moment")
+
+
+def _relative_range(dist, info: ValidationInfo):
+    if dist is not None and (dist.uniform[0] < -0.5 or dist.uniform[1] > 1.0):
+        raise ValueError("relative change: uniform range must lie within [-0.5, 1.0]")
+    return dist
+
+
+#: Per parameter, the distribution of each case's unit's relative change (+0.1 = 10 % more).
+ActuatorSpread = create_model(
+    "ActuatorSpread", __base__=Strict, __module__=__name__,
+    __validators__={"_range": field_validator(*SPREAD_PARAMETERS)(_relative_range)},
+    **{name: (Optional[Uniform], None) for name in SPREAD_PARAMETERS})
+
+
 class Campaign(Strict):
     name: Name
     description: str = ""
@@ -333,6 +351,20 @@ class Campaign(Strict):
     scenario: Union[str, Scenario] = Field(description="base scenario: path or inline mapping")
     faults: FaultDistributions
     identify: IdentifySettings = IdentifySettings()
+    actuator_spread: ActuatorSpread = Field(
+        ActuatorSpread(), description="each case's unit: relative changes of the set's values")
+    hinge_moment: Optional[Uniform] = Field(
+        None, description="[N m] each case's constant hinge moment, unknown to the identification")
+    commission: bool = Field(
+        False, description="each case first commissions its own unit from a healthy recording "
+                           "and identifies against it")
+
+    @field_validator("hinge_moment")
+    @classmethod
+    def _hinge_range(cls, dist):
+        if dist is not None and (dist.uniform[0] < -5000 or dist.uniform[1] > 5000):
+            raise ValueError("uniform range must lie within [-5000, 5000] N m")
+        return dist
 
 
 def _base_scenario(scenario: str | Scenario, path: Path) -> Scenario:
