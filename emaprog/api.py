@@ -98,14 +98,6 @@ def simulate(scenario: str | Path | Scenario | dict, *, model: Model = "referenc
     return frame_of(trace)
 
 
-def _trace_scenario(trace: Trace, source: Path) -> Scenario | None:
-    """The scenario a trace made by ``simulate`` carries in its metadata, if any."""
-    data = (trace.metadata or {}).get("scenario")
-    if data is None:
-        return None
-    return parse_scenario(data, f"{source} (embedded scenario)")
-
-
 @dataclass(frozen=True)
 class Report:
     """An identification's result: the SPEC 5 keys, typed, and the whole ``report.json``."""
@@ -168,6 +160,15 @@ class Commissioned:
     residual: float
 
 
+def _measured(path: Path, columns: str | Path | None, params: Parameters | None) -> Trace:
+    """A contract trace file, or with a column map a rig recording read through it."""
+    if columns is None:
+        return read_trace(path)
+    from .io.recordings import load_column_map, read_recording
+
+    return read_recording(path, load_column_map(columns), params, columns)
+
+
 def commission(recordings: list[str | Path], output: str | Path, *,
                parameters: str | Path | None = None, columns: str | Path | None = None) -> Commissioned:
     """Fit a unit's own parameter set from recordings of it while healthy (SPEC 11).
@@ -186,19 +187,9 @@ def commission(recordings: list[str | Path], output: str | Path, *,
     if not recordings:
         raise InputError("commission", "give at least one recording of the healthy unit")
     base = _parameters(parameters, None, None, "--parameters")
-    column_map = None
-    if columns is not None:
-        from .io.recordings import load_column_map
-
-        column_map = load_column_map(columns)
     prepared = []
     for path in map(Path, recordings):
-        if column_map is not None:
-            from .io.recordings import read_recording
-
-            trace = read_recording(path, column_map, base, columns)
-        else:
-            trace = read_trace(path)
+        trace = _measured(path, columns, base)
         check_sampling(trace, str(path))
         prepared.append(commissioning.prepare(trace, str(path), base))
     result = commissioning.fit(prepared, base)
@@ -235,17 +226,13 @@ def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = 
     if isinstance(trace, pd.DataFrame):
         source: str | Path = "trace (DataFrame)"
         measured = trace_of(trace, source)
-    elif columns is not None:
-        from .io.recordings import load_column_map, read_recording
-
-        source = Path(trace)
-        named = chosen.parameters if chosen is not None else None
-        folder = Path(scenario).parent if chosen is not None else None
-        measured = read_recording(source, load_column_map(columns),
-                                  _parameters(parameters, named, folder, "--parameters"), columns)
     else:
         source = Path(trace)
-        measured = read_trace(source)
+        replayed = None  # the set whose controller signs a current built from phase currents
+        if columns is not None:
+            replayed = (_parameters(parameters, chosen.parameters, Path(scenario).parent, scenario)
+                        if chosen is not None else _parameters(parameters, None, None, "--parameters"))
+        measured = _measured(source, columns, replayed)
     embedded = _trace_scenario(measured, source)
     basis = chosen or embedded
     if chosen is not None:

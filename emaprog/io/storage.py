@@ -6,13 +6,16 @@ import json
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
 from ..errors import InputError
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 #: Every trace column: unit and description. The single table of record.
 COLUMNS: dict[str, tuple[str, str]] = {
