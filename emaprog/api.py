@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal, NamedTuple
 
+import numpy as np
 import pandas as pd
 
 from . import __version__
@@ -23,8 +24,10 @@ from .config.scenario import (
     IdentifySettings, Scenario, load_any, load_scenario, parse_scenario,
 )
 from .errors import InputError
-from .faults import PHASE_FAULT, flatten, nested, worst_phase
+from .faults import PHASE_FAULT, QUANTITIES, flatten, nested, worst_phase
 from .identification import check_sampling, identify_trace
+from .identification.confidence import confidence_record
+from .identification.objective import low_pass
 from .identification import result as verdicts
 from .io.storage import Trace, frame_of, read_trace, trace_of, write_json, write_trace
 from .models import monitor, reference
@@ -169,6 +172,37 @@ def _measured(path: Path, columns: str | Path | None, params: Parameters | None)
     return read_recording(path, load_column_map(columns), params, columns)
 
 
+def _commissioning_residuals(params: Parameters) -> list:
+    """The commissioning recordings' residuals of a commissioned set (``nominal_correction:
+    recording``); for one that cannot be used, why (the identification then says so)."""
+    import hashlib
+
+    from .identification.objective import recording_residual
+
+    record = params.spec.commissioning
+    if record is None:
+        return []
+    out: list = []
+    for entry in record.recordings:
+        path = Path(entry.file)
+        if not path.is_file():
+            out.append(f"commissioning recording {entry.file} not found")
+            continue
+        if hashlib.sha256(path.read_bytes()).hexdigest() != entry.sha256:
+            out.append(f"commissioning recording {entry.file} changed since commissioning "
+                       "(sha256 differs)")
+            continue
+        try:
+            recording = _measured(path, entry.columns, params)
+        except InputError as exc:
+            out.append(f"commissioning recording {entry.file} unreadable: {exc}")
+            continue
+        rec_inputs = inputs_from_trace(recording, params.spec.controller.rate)
+        out.append(recording_residual(recording, rec_inputs, params, entry.hinge_moment,
+                                      str(path)))
+    return out
+
+
 def commission(recordings: list[str | Path], output: str | Path, *,
                parameters: str | Path | None = None, columns: str | Path | None = None) -> Commissioned:
     """Fit a unit's own parameter set from recordings of it while healthy (SPEC 11).
@@ -196,7 +230,8 @@ def commission(recordings: list[str | Path], output: str | Path, *,
     commissioning.check_explained(result, prepared)
     output = Path(output)
     name = re.sub(r"[^A-Za-z0-9_-]", "-", output.stem) or "unit"
-    text = commissioning.unit_set(base, result, prepared, name, datetime.date.today().isoformat())
+    text = commissioning.unit_set(base, result, prepared, name, datetime.date.today().isoformat(),
+                                  None if columns is None else str(columns))
     output.parent.mkdir(parents=True, exist_ok=True)
     tmp = output.with_name(f".{output.name}.tmp")
     tmp.write_text(text)
@@ -245,7 +280,10 @@ def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = 
     check_sampling(measured, str(source))
     inp = inputs_from_trace(measured, params.spec.controller.rate,
                             basis.load if basis is not None else None)
-    result = identify_trace(measured, inp, params, settings, show_progress=show_progress)
+    recordings = (_commissioning_residuals(params) if settings.nominal_correction == "recording"
+                  else [])
+    result = identify_trace(measured, inp, params, settings, show_progress=show_progress,
+                            recordings=recordings)
 
     truth = flatten(embedded.faults) if embedded is not None else None
     error = verdicts.errors(result.estimate, truth) if truth is not None else None
@@ -253,10 +291,16 @@ def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = 
         "estimate": nested(result.estimate),
         "truth": nested(truth) if truth is not None else None,
         "error": nested(error) if error is not None else None,
-        "health": verdicts.health(result.estimate, settings.estimate, params),
+        "health": verdicts.health(result.estimate, settings.estimate, params,
+                                  result.confidence.inconclusive),
+        "interval": nested({q: list(result.confidence.interval[q])
+                            if q in result.confidence.interval else None for q in QUANTITIES}),
         f"{PHASE_FAULT}_phase": worst_phase(result.estimate),
         "nuisance": {name: result.estimate[name] for name in settings.nuisances},
         "fitness": result.fitness,
+        "confidence": confidence_record(result.confidence),
+        "correction": {"applied": result.objective.correction.applied,
+                       "note": result.objective.correction.note},
         "ga": {"estimate": nested(result.ga_estimate), "fitness": result.ga_fitness,
                "generations": result.generations, "stopped_by": result.stopped_by,
                "refined": result.refined, "logbook": result.logbook},
@@ -276,10 +320,14 @@ def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = 
 
     folder = Path(output)
     folder.mkdir(parents=True, exist_ok=True)
-    identified = result.objective.simulate(result.estimate)
+    objective = result.objective
+    identified = objective.simulate(result.estimate)
+    residual = objective.target.current - objective.instants.sample(
+        low_pass(identified["current"], objective.filter_width))
+    floor = result.confidence.floor.sigma["current"] / np.sqrt(objective.measured_width)
     figures = {
-        "fit": plot_fit(measured, identified, result.objective.measured_width,
-                        result.objective.filter_width, folder / "fit.png"),
+        "fit": plot_fit(measured, identified, objective.measured_width, objective.filter_width,
+                        folder / "fit.png", residual, floor),
         "convergence": plot_convergence(result.logbook, folder / "convergence.png"),
     }
     data["figures"] = {name: path.name for name, path in figures.items()}

@@ -44,8 +44,11 @@ def plot_trace(trace: Trace, path: str | Path, title: str = "") -> Path:
 
 
 def plot_fit(trace: Trace, identified: dict[str, np.ndarray], measured_width: int,
-             model_width: int, path: str | Path) -> Path:
-    """Measured vs identified Monitor current (both over the fitness's 1 ms) and position.
+             model_width: int, path: str | Path, residual: np.ndarray | None = None,
+             floor: float | None = None) -> Path:
+    """Measured vs identified Monitor current (both over the fitness's 1 ms) and position;
+    with ``residual`` (the fitted current error at the recorded instants [A]) a third panel
+    draws it against the recording's noise floor ``floor`` (1 ms mean of its noise, 1 sigma).
 
     The measurement is drawn at its own instants (relative to its first sample), the
     Monitor on its controller grid (``identified["time"]``).
@@ -54,7 +57,8 @@ def plot_fit(trace: Trace, identified: dict[str, np.ndarray], measured_width: in
 
     t = trace.time - trace.time[0]
     tm = identified["time"]
-    fig, ax = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
+    panels = 2 if residual is None else 3
+    fig, ax = plt.subplots(panels, 1, figsize=(10, 3 * panels), sharex=True)
     ax[0].plot(t, low_pass(trace["current"], measured_width), lw=0.9, label="measured (1 ms mean)")
     ax[0].plot(tm, low_pass(identified["current"], model_width), lw=0.9, ls="--",
                label="identified Monitor Model")
@@ -64,8 +68,16 @@ def plot_fit(trace: Trace, identified: dict[str, np.ndarray], measured_width: in
     ax[1].plot(t, trace["position"], lw=0.9, label="measured")
     ax[1].plot(tm, identified["position"], lw=0.9, ls="--", label="identified Monitor Model")
     ax[1].set_ylabel("surface position [rad]")
-    ax[1].set_xlabel("time [s]")
     ax[1].legend(loc="upper right")
+    if residual is not None:
+        ax[2].plot(t, residual, lw=0.8, label="residual (corrected measurement - Monitor, 1 ms mean)")
+        if floor is not None:
+            for sign in (-2.0, 2.0):
+                ax[2].axhline(sign * floor, color="C3", ls=":", lw=1.0,
+                              label="noise floor (+-2 sigma)" if sign > 0 else None)
+        ax[2].set_ylabel("current residual [A]")
+        ax[2].legend(loc="upper right")
+    ax[-1].set_xlabel("time [s]")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -115,11 +127,20 @@ def identification_summary(report: dict) -> str:
     health = ", ".join(f"{fault} {verdict}" for fault, verdict in report["health"].items())
     lines = [f"health: {health}"]
     phase = report.get(f"{PHASE_FAULT}_phase")
-    if report["health"].get(PHASE_FAULT, "nominal") != "nominal" and phase:
-        lines.append(f"{FAULTS[PHASE_FAULT].label} on phase {phase.upper()}")
+    if report["health"].get(PHASE_FAULT) in ("incipient", "degraded") and phase:
+        isolation = report["confidence"]["isolation"]
+        lines.append(f"{FAULTS[PHASE_FAULT].label} on phase {phase.upper()}"
+                     + (f" (confidence {isolation['confidence']:.0%})" if isolation else ""))
+    for fault, why in report["confidence"]["inconclusive"].items():
+        lines.append(f"{fault} inconclusive: {why}")
     for label, keys, unit, fmt in ROWS:
         est = _fmt(_pick(report["estimate"], keys), fmt)
-        line = f"  {label:20s} {est:>10s} {unit}"
+        interval = _pick(report["interval"], keys)
+        if interval is not None:
+            est += f" [{fmt.format(interval[0])}, {fmt.format(interval[1])}]"
+        line = f"  {label:20s} {est:>32s} {unit}"
+        if keys[0] in report["confidence"]["inconclusive"]:
+            line += " (inconclusive: not a finding)"
         if report["truth"] is not None:
             line += (f"   (true {_fmt(_pick(report['truth'], keys), fmt)}, "
                      f"error {_fmt(_pick(report['error'], keys), fmt)})")
@@ -130,17 +151,29 @@ def identification_summary(report: dict) -> str:
 
 
 def report_markdown(report: dict) -> str:
+    confidence = report["confidence"]
     truth = report["truth"] is not None
-    head = "| quantity | unit | estimate | GA best |" + (" truth | error |" if truth else "")
-    rule = "|---|---|---|---|" + ("---|---|" if truth else "")
+    head = "| quantity | unit | estimate | 90 % interval | GA best |" + (" truth | error |" if truth else "")
+    rule = "|---|---|---|---|---|" + ("---|---|" if truth else "")
     rows = []
     for label, keys, unit, fmt in ROWS:
-        cells = [label, unit, _fmt(_pick(report["estimate"], keys), fmt),
+        interval = _pick(report["interval"], keys)
+        finding = "" if keys[0] not in confidence["inconclusive"] else " (inconclusive)"
+        cells = [label, unit, _fmt(_pick(report["estimate"], keys), fmt) + finding,
+                 "—" if interval is None else f"[{fmt.format(interval[0])}, {fmt.format(interval[1])}]",
                  _fmt(_pick(report["ga"]["estimate"], keys), fmt)]
         if truth:
             cells += [_fmt(_pick(report["truth"], keys), fmt), _fmt(_pick(report["error"], keys), fmt)]
         rows.append("| " + " | ".join(cells) + " |")
-    health = "\n".join(f"| {fault} | {verdict} |" for fault, verdict in report["health"].items())
+    reasons = confidence["inconclusive"]
+    health = "\n".join(f"| {fault} | {verdict} | {reasons.get(fault, '')} |"
+                       for fault, verdict in report["health"].items())
+    floor = confidence["noise_floor"]
+    isolation = confidence["isolation"]
+    isolated = ("" if isolation is None else
+                f" Confidence in phase {isolation['phase'].upper()} against phase "
+                f"{isolation['runner_up'].upper()}: {isolation['confidence']:.1%} "
+                f"(chi-square difference {isolation['delta_chi2']:.3g}).")
     ga = report["ga"]
     return f"""# Fault identification: {report['scenario'] or report['trace']}
 
@@ -148,11 +181,15 @@ Trace `{report['trace']}`, parameter set `{report['parameters']}`, emaprog {repo
 
 ## Health
 
-| fault | verdict |
-|---|---|
+| fault | verdict | why inconclusive |
+|---|---|---|
 {health}
 
-Faulty phase (largest shorted fraction): {report[f'{PHASE_FAULT}_phase'] or 'none'}.
+Faulty phase (largest shorted fraction): {report[f'{PHASE_FAULT}_phase'] or 'none'}.{isolated}
+
+Fit quality: fitness {report['fitness']:.3e} is {floor['ratio']:.2f} x the recording's noise
+floor ({floor['fitness']:.3e}); {'explained' if floor['explained'] else 'NOT explained'}
+({floor['rule']}). Intervals: {confidence['method']}.
 
 ## Estimates
 
@@ -163,6 +200,8 @@ Faulty phase (largest shorted fraction): {report[f'{PHASE_FAULT}_phase'] or 'non
 Fitness {report['fitness']:.4e} (GA best {ga['fitness']:.4e}; refined: {ga['refined']}).
 {ga['generations']} generations (stopped by {ga['stopped_by']}), {report['evaluations']} Monitor
 Model runs, {report['elapsed_s']:.2f} s, GA seed {report['seed']}.
+
+Nominal-discrepancy correction: {report['correction']['applied']} ({report['correction']['note']}).
 
 ## Figures
 

@@ -123,3 +123,43 @@ def test_recordings_that_cannot_commission_exit_2_and_write_nothing(tmp_path, ca
     assert result.exit_code == 2, result.output
     assert fragment in result.output and path.name in result.output
     assert "Traceback" not in result.output and not out.exists()
+
+
+@pytest.mark.slow
+def test_identification_against_the_unit_can_use_its_commissioning_recording(tmp_path):
+    """`identify.nominal_correction: recording` with a commissioned set subtracts the
+    commissioning recording's own residual when the inspection repeats its command on its
+    grid, and says so; with the recording gone it falls back to `reference` and says why.
+    The faulty inspection (a 20 % short on B) is identified within SPEC 10 either way."""
+    import json
+    import shutil
+
+    import yaml
+
+    healthy = healthy_recording(tmp_path / "healthy.parquet", noise=True)
+    unit = tmp_path / "unit.yaml"
+    assert CliRunner().invoke(app, ["commission", str(healthy), "-o", str(unit)]).exit_code == 0
+    faults = load_scenario(CONFIGS / "short-circuit.yaml").faults
+    inspection = healthy_recording(tmp_path / "inspection.parquet", noise=True, faults=faults,
+                                   seed=99)
+    settings = load_scenario(CONFIGS / "chirp-nominal.yaml").model_dump(mode="json")
+    settings["identify"].update(nominal_correction="recording", nuisances=["hinge_moment"])
+    scenario = tmp_path / "inspection.yaml"
+    scenario.write_text(yaml.safe_dump(settings))
+
+    def identify(folder: str) -> dict:
+        result = CliRunner().invoke(app, ["identify", str(inspection), "--scenario", str(scenario),
+                                          "--parameters", str(unit), "-o", str(tmp_path / folder)])
+        assert result.exit_code == 0, result.output
+        return json.loads((tmp_path / folder / "report.json").read_text())
+
+    report = identify("with-recording")
+    assert report["correction"]["applied"] == "recording"
+    assert "healthy.parquet" in report["correction"]["note"]
+    true_fraction = faults.short_circuit.b
+    assert abs(report["estimate"]["short_circuit"]["b"] - true_fraction) < 0.03
+    shutil.move(healthy, tmp_path / "moved.parquet")
+    report = identify("without")
+    assert report["correction"]["applied"] == "reference"
+    assert "not found" in report["correction"]["note"]
+    assert abs(report["estimate"]["short_circuit"]["b"] - true_fraction) < 0.03

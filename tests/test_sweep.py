@@ -315,11 +315,21 @@ def test_baseline_regression_exits_3_and_bad_baseline_exits_2(tiny, tmp_path):
 
 @pytest.mark.slow
 def test_regression_campaign_meets_its_committed_baseline(tmp_path):
+    """The baseline's figures, and 90 % intervals that hold the truth: coverage at least
+    7 of the 10 cases per quantity (at a true 90 %, 6 or fewer happens with 1.3 %
+    probability; the model-error factors were calibrated on another campaign) and a median
+    width within twice SPEC 10's tolerance."""
     campaign = ROOT / "campaigns" / "regression.yaml"
     baseline = ROOT / "campaigns" / "regression-baseline.json"
     result = runner.invoke(app, ["sweep", str(campaign), "-o", str(tmp_path / "regression"),
                                  "--baseline", str(baseline)])
     assert result.exit_code == 0, result.output
+    summary = json.loads((tmp_path / "regression" / "summary.json").read_text())
+    for name, block in summary["intervals"]["quantities"].items():
+        if block["n"] >= 5:
+            assert block["coverage"] >= 0.7, (name, block)
+        if block["width_bar"] is not None:
+            assert block["median_width"] <= block["width_bar"], (name, block)
 
 
 @pytest.mark.slow
@@ -329,6 +339,8 @@ def test_no_healthy_actuator_is_flagged_faulty(tmp_path):
                         show_progress=False)
     alarms = outcome.summary["false_alarms"]
     assert alarms["healthy_cases"] == 20 and alarms["flagged"] == 0, alarms
+    # a healthy unit on the standard chirp is a conclusive recording: nothing inconclusive
+    assert set(outcome.summary["intervals"]["inconclusive"].values()) == {0.0}
 
 
 def test_sweep_workers_import_no_plotting_library():

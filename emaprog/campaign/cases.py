@@ -46,7 +46,7 @@ from ..faults import (
     CATALOGUE, FAULT_NAMES, PHASE_FAULT, PHASES, QUANTITIES, Fault, flatten, worst_phase,
 )
 from ..identification import identify_trace
-from ..identification.objective import NUISANCE_DEFAULTS
+from ..identification.objective import NUISANCE_DEFAULTS, ResidualRecording, recording_residual
 from ..identification import result as verdicts
 from ..models import reference
 from ..models.common import inputs
@@ -201,8 +201,14 @@ def with_hinge(scenario: Scenario, hinge_moment: float) -> Scenario:
     return Scenario.model_validate({**scenario.model_dump(mode="json"), "load": load})
 
 
-def commission_case(spec: CaseSpec, unit: Parameters) -> tuple[Parameters, dict]:
-    """Commission the case's unit from its own healthy recording; (the set, row columns)."""
+def commission_case(spec: CaseSpec,
+                    unit: Parameters) -> tuple[Parameters, dict, ResidualRecording]:
+    """Commission the case's unit from its own healthy recording.
+
+    Returns the commissioned set, the row's commissioning columns and the recording's
+    residual against the commissioned healthy Monitor (``identify.nominal_correction:
+    recording``).
+    """
     from ..fitting import commission as commissioning
 
     healthy = Scenario.model_validate({**spec.scenario.model_dump(mode="json"),
@@ -219,7 +225,9 @@ def commission_case(spec: CaseSpec, unit: Parameters) -> tuple[Parameters, dict]
     row = {f"commission_err_{k}": float(v / true[k] - 1.0) for k, v in fit.values.items()}
     row["commission_err_hinge_moment"] = float(fit.hinge_moments[0] - spec.commission.hinge_moment)
     row["commission_undetermined"] = ",".join(fit.not_determined)
-    return commissioned, row
+    residual = recording_residual(recording, prepared.inputs, commissioned, fit.hinge_moments[0],
+                                  f"case {spec.case_id} commissioning")
+    return commissioned, row, residual
 
 
 def run_case(spec: CaseSpec) -> dict:
@@ -233,15 +241,19 @@ def run_case(spec: CaseSpec) -> dict:
     unit = spec.unit if spec.unit is not None else spec.params
     trace = reference.simulate(with_hinge(spec.scenario, spec.hinge_moment), unit)
     simulated = time.perf_counter()
-    params, commission_row = spec.params, {}
+    params, commission_row, recordings = spec.params, {}, []
     if spec.commission is not None:
-        params, commission_row = commission_case(spec, unit)
+        params, commission_row, residual = commission_case(spec, unit)
+        recordings = [residual]
     commissioned = time.perf_counter()
     inp = inputs(spec.scenario, params)
-    result = identify_trace(trace, inp, params, spec.settings, show_progress=False)
+    result = identify_trace(trace, inp, params, spec.settings, show_progress=False,
+                            recordings=recordings)
     truth = flatten(spec.scenario.faults)
     error = verdicts.errors(result.estimate, truth)
-    health = verdicts.health(result.estimate, spec.settings.estimate, spec.params)
+    confidence = result.confidence
+    health = verdicts.health(result.estimate, spec.settings.estimate, spec.params,
+                             confidence.inconclusive)
     true_health = verdicts.health(truth, list(FAULT_NAMES), spec.params)
     row: dict = {
         "case_id": spec.case_id,
@@ -249,10 +261,14 @@ def run_case(spec: CaseSpec) -> dict:
         "noise_seed": spec.scenario.seed,
         "ga_seed": spec.settings.ga.seed,
     }
+    nan = float("nan")
     for name in QUANTITIES:
         row[f"true_{name}"] = float(truth[name])
         row[f"est_{name}"] = float(result.estimate[name])
-        row[f"err_{name}"] = float("nan") if error[name] is None else float(error[name])
+        row[f"err_{name}"] = nan if error[name] is None else float(error[name])
+        low, high = confidence.interval.get(name, (nan, nan))
+        row[f"low_{name}"], row[f"high_{name}"] = float(low), float(high)
+        row[f"se_{name}"] = float(confidence.standard_error.get(name, nan))
     for fault in FAULT_NAMES:
         row[f"health_{fault}"] = health.get(fault, "not estimated")
         row[f"true_health_{fault}"] = true_health[fault]
@@ -260,6 +276,10 @@ def run_case(spec: CaseSpec) -> dict:
         f"true_{PHASE_FAULT}_phase": worst_phase(truth) or "none",
         f"est_{PHASE_FAULT}_phase": _detected_phase(result.estimate, health),
         "fitness": float(result.fitness),
+        "correction": result.objective.correction.applied,
+        "floor_ratio": float(confidence.floor.ratio),
+        "isolation_confidence": float(confidence.isolation["confidence"])
+        if confidence.isolation else nan,
         "evaluations": int(result.evaluations),
         "generations": int(result.generations),
         "simulate_s": simulated - start,
@@ -274,8 +294,8 @@ def run_case(spec: CaseSpec) -> dict:
 
 
 def _detected_phase(estimate: dict[str, float], health: dict[str, str]) -> str:
-    """The phase named faulty: the worst one, only when the short circuit is not nominal."""
-    if health.get(PHASE_FAULT, "nominal") == "nominal":
+    """The phase named faulty: the worst one, only when the short circuit is flagged."""
+    if health.get(PHASE_FAULT, "nominal") not in ("incipient", "degraded"):
         return "none"
     return worst_phase(estimate) or "none"
 

@@ -121,6 +121,7 @@ def summarize(frame: pd.DataFrame, params: Parameters) -> dict:
     return {
         "cases": int(len(frame)),
         "errors": errors,
+        "intervals": _intervals(frame, params),
         "commissioning": _commissioning(frame),
         "nuisance": _nuisance(frame),
         "detection": detection,
@@ -132,6 +133,50 @@ def summarize(frame: pd.DataFrame, params: Parameters) -> dict:
             "median_identify_s": float(frame["identify_s"].median()) if len(frame) else None,
         },
     }
+
+
+def _intervals(frame: pd.DataFrame, params: Parameters) -> dict | None:
+    """Per quantity: how often the 90 % interval holds the truth, and its median width.
+
+    Width in the quantity's ACCURACY measure (friction over its true value), set
+    beside twice SPEC 10's tolerance; the phase's arc counts only where the true
+    zeta reaches the incipient threshold (as its error does). Inconclusive
+    verdicts are counted per fault.
+    """
+    if "low_friction" not in frame:
+        return None
+    out = {}
+    for name, q in QUANTITIES.items():
+        low = frame[f"low_{name}"].to_numpy(float)
+        high = frame[f"high_{name}"].to_numpy(float)
+        true = frame[f"true_{name}"].to_numpy(float)
+        keep = np.isfinite(low) & np.isfinite(high)
+        if q.circular:
+            fault = next(f for f in CATALOGUE if name in {x.name for x in f.quantities})
+            severity = np.max([np.abs(frame[f"true_{m.name}"].to_numpy(float) - m.healthy)
+                               for m in fault.magnitudes], axis=0)
+            keep &= severity >= getattr(params.spec.health, fault.name).incipient
+            half = 0.5 * (high - low)
+            centre = 0.5 * (high + low)
+            offset = np.abs(np.remainder(true - centre + math.pi, 2.0 * math.pi) - math.pi)
+            covered = (half >= math.pi) | (offset <= half + 1e-12)
+            width = high - low
+        else:
+            covered = (true >= low - 1e-12) & (true <= high + 1e-12)
+            width = high - low
+            if q.measure == "relative":
+                width = width / true
+        n = int(keep.sum())
+        bar = None if q.tolerance is None else 2.0 * q.tolerance
+        out[name] = {
+            "n": n,
+            "coverage": _rate(int(covered[keep].sum()), n),
+            "median_width": float(np.median(width[keep])) if n else None,
+            "width_bar": bar,
+        }
+    inconclusive = {f: _rate(int((frame[f"health_{f}"] == "inconclusive").sum()), len(frame))
+                    for f in FAULT_NAMES}
+    return {"quantities": out, "inconclusive": inconclusive}
 
 
 def _spread(values: np.ndarray) -> dict:
@@ -263,9 +308,24 @@ Rows: true faulty phase; columns: phase named by the verdict. Correct on
 |---|---|---|---|---|
 {matrix}
 
-{_commissioning_markdown(summary)}Median time per case: simulate {_cell(summary['timing']['median_simulate_s'], '{:.2f}')} s,
+{_intervals_markdown(summary)}{_commissioning_markdown(summary)}Median time per case: simulate {_cell(summary['timing']['median_simulate_s'], '{:.2f}')} s,
 identify {_cell(summary['timing']['median_identify_s'], '{:.2f}')} s.
 """
+
+
+def _intervals_markdown(summary: dict) -> str:
+    block = summary.get("intervals")
+    if not block:
+        return ""
+    rows = "\n".join(f"| {name} | {s['n']} | {_cell(s['coverage'], '{:.0%}')} | "
+                     f"{_cell(s['median_width'])} | {_cell(s['width_bar'])} |"
+                     for name, s in block["quantities"].items())
+    inconclusive = ", ".join(f"{f} {_cell(r, '{:.0%}')}" for f, r in block["inconclusive"].items())
+    return ("## Confidence\n\nShare of cases whose 90 % interval holds the truth (target "
+            "85-95 %), and the interval's median width (friction relative to its true value) "
+            "beside twice SPEC 10's tolerance.\n\n| quantity | n | coverage | median width | "
+            "2 x tolerance |\n|---|---|---|---|---|\n" + rows
+            + f"\n\nInconclusive verdicts: {inconclusive}.\n\n")
 
 
 def _commissioning_markdown(summary: dict) -> str:

@@ -139,8 +139,10 @@ class FittedValue(_Section):
 class CommissioningRecording(_Section):
     """A healthy recording a unit was commissioned from."""
 
-    file: str
+    file: str = Field(description="the recording (absolute path when it was a file)")
     sha256: str
+    columns: Optional[str] = Field(None, description="the column map it was read through "
+                                                     "(absolute path), null for a trace file")
     hinge_moment: Real = Field(description="[N m] constant hinge moment during the recording")
     hinge_moment_standard_error: NonNeg = Field(description="[N m]")
     residual: dict[str, NonNeg] = Field(description="RMS of the fit residual per signal over the "

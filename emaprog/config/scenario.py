@@ -206,9 +206,18 @@ class IdentifySettings(Strict):
         default_factory=list, description="operating conditions estimated beside the faults and "
                                           "reported under `nuisance`, never given a verdict")
     nuisance_bounds: NuisanceBounds = NuisanceBounds()
-    nominal_correction: bool = Field(
-        True, description="subtract the healthy Reference-Monitor difference from the measured "
-                          "signals before fitting (see emaprog.identification.objective)")
+    nominal_correction: Literal["reference", "recording", "none"] = Field(
+        "reference", description="what is subtracted from the measured signals before fitting: "
+                                 "the healthy Reference-Monitor difference with the set in use, "
+                                 "the unit's commissioning recording's residual, or nothing "
+                                 "(true/false: reference/none)")
+
+    @field_validator("nominal_correction", mode="before")
+    @classmethod
+    def _correction_flag(cls, value):
+        if value is True:
+            return "reference"
+        return "none" if value is False else value
 
     @model_validator(mode="after")
     def _unique(self):

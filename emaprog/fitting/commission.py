@@ -37,6 +37,7 @@ from scipy.optimize import least_squares
 from ..config.parameters import Parameters
 from ..errors import InputError
 from ..faults import healthy_values, monitor_form
+from ..identification.confidence import correlation_length, information_inverse
 from ..identification.objective import FILTER_SECONDS, STARTUP_SECONDS, filter_lag, low_pass
 from ..io.storage import Trace
 from ..kernels.monitor import simulate_monitor
@@ -227,48 +228,8 @@ def _solve(recordings, params, free, x0):
     dof = max(result.fun.size - jac.shape[1], 1)
     s2 = float(result.fun @ result.fun) / dof
     information = jac.T @ jac
-    cov = s2 * correlation_length(result.fun, problem.blocks) * _inverse(information)
+    cov = s2 * correlation_length(result.fun, problem.blocks) * information_inverse(information)
     return problem, result, cov, information
-
-
-def _inverse(information: np.ndarray) -> np.ndarray:
-    """(J^T J)^-1, with infinite variance along directions the data do not constrain at all
-    (a parameter that changes nothing, e.g. static friction when the motor never sticks)."""
-    eigenvalues, vectors = np.linalg.eigh(information)
-    floor = 1e-12 * max(float(eigenvalues.max()), 1e-300)
-    cov = (vectors / np.maximum(eigenvalues, floor)) @ vectors.T
-    blind = vectors[:, eigenvalues <= floor]
-    if blind.size:
-        touched = np.any(np.abs(blind) > 1e-3, axis=1)
-        cov[touched, touched] = np.inf
-    return cov
-
-
-def correlation_length(residual: np.ndarray, blocks: list[int]) -> float:
-    """Samples per independent residual: the integrated autocorrelation time [samples].
-
-    The residual of a fit to real data is not white: the 1 ms mean correlates
-    neighbours, and what the Monitor does not model (the Reference's switching, a
-    real unit's unmodelled effects) runs over many milliseconds. Standard errors
-    from ``s^2 (J^T J)^-1`` count every sample as independent and would be
-    optimistic by the square root of this length. Per block (recording x signal):
-    ``1 + 2 sum rho_k`` up to the first non-positive autocorrelation; the
-    mean over the blocks, weighted by their length.
-    """
-    lengths, weights = [], []
-    for part in np.split(residual, np.cumsum(blocks)[:-1]):
-        x = part - part.mean()
-        n = x.size
-        spectrum = np.fft.rfft(x, 2 * n)
-        acf = np.fft.irfft(spectrum * np.conj(spectrum))[:n]
-        if acf[0] <= 0:
-            continue
-        rho = acf / acf[0]
-        stop = np.flatnonzero(rho <= 0)
-        k = int(stop[0]) if stop.size else n
-        lengths.append(1.0 + 2.0 * float(np.sum(rho[1:k])))
-        weights.append(n)
-    return float(np.average(lengths, weights=weights)) if lengths else 1.0
 
 
 def fit(recordings: list[Recording], params: Parameters) -> Fit:
@@ -342,7 +303,7 @@ def check_explained(fit_result: Fit, recordings: list[Recording]) -> None:
 
 
 def unit_set(base: Parameters, fit_result: Fit, recordings: list[Recording], name: str,
-             date: str) -> str:
+             date: str, columns: str | None = None) -> str:
     """The commissioned unit as a complete parameter-set YAML text (checked to load)."""
     import hashlib
 
@@ -358,9 +319,10 @@ def unit_set(base: Parameters, fit_result: Fit, recordings: list[Recording], nam
     fitted = {u.name: {"value": fit_result.values[u.name], "base": fit_result.base[u.name],
                        "standard_error": fit_result.standard_errors[u.name]}
               for u in UNKNOWNS if u.name in fit_result.standard_errors}
-    sources = [{"file": r.source,
+    sources = [{"file": str(Path(r.source).resolve()) if Path(r.source).is_file() else r.source,
                 "sha256": hashlib.sha256(Path(r.source).read_bytes()).hexdigest()
                 if Path(r.source).is_file() else "",
+                "columns": str(Path(columns).resolve()) if columns is not None else None,
                 "hinge_moment": h, "hinge_moment_standard_error": e, "residual": res}
                for r, h, e, res in zip(recordings, fit_result.hinge_moments,
                                        fit_result.hinge_errors, fit_result.residuals)]

@@ -7,15 +7,22 @@ signals (it removes the Reference/real motor's switching ripple and most of the
 sensor noise, which the Monitor does not model). The command (and the load,
 when the trace's scenario is known) come from the trace.
 
-Nominal-discrepancy correction (``identify.nominal_correction``, on by
-default): the healthy Monitor differs from the healthy three-phase motor by a
-deterministic residual of about 2 % (commutation dips, freewheeling currents),
-as large as the signatures of incipient faults and partly aligned with them,
-so it biases the estimates. The correction runs the healthy Reference and
-Monitor once on the trace's own command and subtracts their difference from
-the measured signals: the optimiser then fits the Monitor's *fault-induced*
-change to the measured one, which is what fault-signature fidelity (SPEC 1)
-guarantees.
+Nominal-discrepancy correction (``identify.nominal_correction``): the healthy
+Monitor differs from the healthy three-phase motor by a deterministic residual
+of about 2 % (commutation dips, freewheeling currents), as large as the
+signatures of incipient faults and partly aligned with them, so it biases the
+estimates. The correction subtracts that residual from the measured signals:
+the optimiser then fits the Monitor's *fault-induced* change to the measured
+one, which is what fault-signature fidelity (SPEC 1) guarantees. Two sources:
+
+* ``reference`` -- the healthy Reference minus the healthy Monitor, noise-free,
+  both with the parameter set in use, on the trace's own command (assumes the
+  Reference Model is the unit);
+* ``recording`` -- the unit's own commissioning recording minus the healthy
+  Monitor (the commissioned set, the recording's fitted hinge moment): a
+  measurement of the unit's residual, usable when the inspection repeats the
+  commissioning recording's command on the same sample grid; otherwise the
+  ``reference`` correction is applied and the report says why.
 """
 
 from __future__ import annotations
@@ -26,12 +33,12 @@ from typing import NamedTuple
 import numpy as np
 
 from ..faults import (
-    CATALOGUE, HEALTHY, QUANTITIES, ZETA_COLUMN, MonitorFaults, healthy_values, monitor_form,
+    CATALOGUE, HEALTHY, QUANTITIES, ZETA_COLUMN, healthy_values, monitor_form,
 )
 from ..kernels.monitor import (
     U_HINGE_MOMENT, U_PHASE_RESISTANCE, evaluate_population, moving_average, unit_plant,
 )
-from ..kernels.structs import ErrorTarget, unit_row
+from ..kernels.structs import ErrorTarget, Plant, unit_row
 from ..models import monitor, reference
 from ..models.common import Inputs, recorded_instants
 from ..numerics import DEFAULT, Numerics
@@ -44,6 +51,18 @@ STARTUP_SECONDS = 0.01  # [s] left out of the error: initial transient of the lo
 TWO_PI = 2.0 * math.pi
 BACK_EMF_SHARE = 0.4  # [-] pair back-EMF / DC bus at the default fit speed limit
 MIN_SAMPLES_SHARE = 0.2  # [-] fewer samples below the speed limit: fit them all
+
+
+class Correction(NamedTuple):
+    """What is subtracted from the measured signals before fitting, and where it comes from."""
+
+    applied: str  # "reference" | "recording" | "none"
+    note: str
+    signals: dict[str, np.ndarray] | None  # current, position, speed
+    on_grid: bool = True  # True: on the controller grid (sampled at the recorded instants)
+
+
+NO_CORRECTION = Correction("none", "identify.nominal_correction is none", None)
 
 
 class Gene(NamedTuple):
@@ -129,7 +148,7 @@ class Objective:
 
     def __init__(self, trace: Trace, inputs: Inputs, params: Parameters,
                  settings: IdentifySettings, numerics: Numerics = DEFAULT,
-                 discrepancy: dict[str, np.ndarray] | None = None):
+                 correction: Correction = NO_CORRECTION):
         self.params = params
         self.inputs = inputs
         self.numerics = numerics
@@ -148,10 +167,16 @@ class Objective:
                  - filter_lag(self.measured_width, recording_rate))
         self.instants = recorded_instants(trace.time, inputs.time, shift)
         n = trace.time.size
-        targets = tuple(
-            low_pass(trace[name] - (self.instants.sample(discrepancy[name]) if discrepancy else 0.0),
-                     self.measured_width)
-            for name in ("current", "position", "speed"))
+        self.correction = correction
+
+        def corrected(name: str) -> np.ndarray:
+            if correction.signals is None:
+                return trace[name]
+            signal = correction.signals[name]
+            return trace[name] - (self.instants.sample(signal) if correction.on_grid else signal)
+
+        targets = tuple(low_pass(corrected(name), self.measured_width)
+                        for name in ("current", "position", "speed"))
         self.speed_limit = fit_speed_limit(settings, params)
         sample_weight = sample_weights(low_pass(trace["speed"], self.measured_width), self.speed_limit,
                                        min(round(STARTUP_SECONDS * recording_rate), n // 10))
@@ -228,17 +253,19 @@ class Objective:
     def healthy_genes(self) -> np.ndarray:
         return self.genes_for(healthy_values())
 
-    def simulate(self, values: dict[str, float]) -> dict[str, np.ndarray]:
-        """Monitor columns for one set of fault values (for figures)."""
-        if not self.genes:
-            return monitor.run(self.params, self.inputs,
-                               monitor_form(healthy_values(), self.eccentricity_gain), opts=self.options)
-        genes = self.genes_for(values)
-        faults = MonitorFaults(*self.kernel_rows(genes)[0].tolist())
-        unit = self.unit_rows(genes)[0]
-        return monitor.run(self.params, self.inputs, faults, opts=self.options,
-                           hinge_moment=float(unit[U_HINGE_MOMENT]),
-                           plant=unit_plant(self.params.plant, unit))
+    def simulate(self, values: dict[str, float], plant: Plant | None = None) -> dict[str, np.ndarray]:
+        """Monitor columns for one set of fault (and nuisance) values, not clipped to the
+        search bounds; ``plant`` replaces the set's (its unit values still apply)."""
+        values = {**healthy_values(), **NUISANCE_DEFAULTS, **values}
+        unit = self.units[0].copy()
+        unit[U_HINGE_MOMENT] = values["hinge_moment"]
+        unit[U_PHASE_RESISTANCE] *= values["resistance_factor"]
+        return monitor.run(self.params, self.inputs, monitor_form(values, self.eccentricity_gain),
+                           opts=self.options, hinge_moment=float(unit[U_HINGE_MOMENT]),
+                           plant=unit_plant(plant if plant is not None else self.params.plant, unit))
+
+
+SIGNALS = ("current", "position", "speed")
 
 
 def nominal_discrepancy(inputs: Inputs, params: Parameters,
@@ -246,4 +273,54 @@ def nominal_discrepancy(inputs: Inputs, params: Parameters,
     """Healthy Reference minus healthy Monitor, noise-free, on the same inputs (controller grid)."""
     ref, _ = reference.run(params, inputs, HEALTHY, with_noise=False, numerics=numerics)
     mon = monitor.run(params, inputs, monitor_form(healthy_values(), 1.0), numerics)
-    return {name: ref[name] - mon[name] for name in ("current", "position", "speed")}
+    return {name: ref[name] - mon[name] for name in SIGNALS}
+
+
+def reference_correction(inputs: Inputs, params: Parameters, numerics: Numerics = DEFAULT,
+                         note: str = "") -> Correction:
+    """The ``reference`` correction (see the module's docstring)."""
+    return Correction("reference", note or "healthy Reference minus healthy Monitor with the "
+                      "parameter set in use, on the trace's own command",
+                      nominal_discrepancy(inputs, params, numerics))
+
+
+class ResidualRecording(NamedTuple):
+    """A commissioning recording's residual: recording minus healthy Monitor, at its samples."""
+
+    source: str
+    time: np.ndarray  # [s] from the recording's first sample
+    command: np.ndarray  # [rad]
+    residual: dict[str, np.ndarray]
+
+
+def recording_residual(recording: Trace, rec_inputs: Inputs, params: Parameters,
+                       hinge_moment: float, source: str,
+                       numerics: Numerics = DEFAULT) -> ResidualRecording:
+    """The healthy recording minus the healthy Monitor of ``params`` under its hinge moment."""
+    mon = monitor.run(params, rec_inputs, monitor_form(healthy_values(), 1.0), numerics,
+                      hinge_moment=hinge_moment)
+    at = recorded_instants(recording.time, rec_inputs.time)
+    return ResidualRecording(source, recording.time - recording.time[0],
+                             np.asarray(recording["command"], float),
+                             {name: recording[name] - at.sample(mon[name]) for name in SIGNALS})
+
+
+#: [-] largest command difference, over the command's RMS, for which an inspection repeats
+#: the commissioning recording's command (rig commands are programmed: equal to rounding)
+SAME_COMMAND = 1e-3
+
+
+def recording_correction(trace: Trace, recording: ResidualRecording) -> Correction | str:
+    """The ``recording`` correction for ``trace``, or why it does not apply."""
+    time = trace.time - trace.time[0]
+    if time.size != recording.time.size or not np.allclose(time, recording.time, rtol=0.0,
+                                                             atol=1e-3 / trace.sample_rate):
+        return (f"the commissioning recording {recording.source} has another sample grid "
+                f"({recording.time.size} samples, the trace {time.size})")
+    command = np.asarray(trace["command"], float)
+    scale = max(float(np.sqrt(np.mean(command ** 2))), 1e-12)
+    if float(np.max(np.abs(command - recording.command))) > SAME_COMMAND * scale:
+        return f"the trace's command is not the commissioning recording's ({recording.source})"
+    return Correction("recording", f"residual of the commissioning recording {recording.source} "
+                      "(recording minus the healthy Monitor of the commissioned set)",
+                      recording.residual, on_grid=False)

@@ -7,13 +7,18 @@ import math
 from ..faults import CATALOGUE, severity
 from ..config.parameters import Parameters
 
-VERDICTS = ("nominal", "incipient", "degraded")
+VERDICTS = ("nominal", "incipient", "degraded", "inconclusive")
 
 
-def health(values: dict[str, float], faults: list[str], params: Parameters) -> dict[str, str]:
-    """Verdict per estimated fault: below ``incipient`` nominal, below ``degraded`` incipient."""
+def health(values: dict[str, float], faults: list[str], params: Parameters,
+           inconclusive: dict[str, str] | None = None) -> dict[str, str]:
+    """Verdict per estimated fault: below ``incipient`` nominal, below ``degraded`` incipient;
+    ``inconclusive`` for the faults the recording cannot tell (their reasons' keys)."""
     verdicts = {}
     for fault in faults:
+        if inconclusive and fault in inconclusive:
+            verdicts[fault] = "inconclusive"
+            continue
         limit = getattr(params.spec.health, fault)
         s = severity(fault, values)
         verdicts[fault] = ("nominal" if s < limit.incipient

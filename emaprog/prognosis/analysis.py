@@ -52,12 +52,12 @@ def analyse(table: HistoryTable, params: Parameters, law: str = "auto") -> dict:
         faults[fault] = entry
         if not detected.size:
             continue
-        floor = FAULTS[fault].identification_sigma
+        floor = inspection_sigma(table, fault)
         last = predict(usage, s, limits.failure, law, seed=index, noise_floor=floor)
         history = []
         for k in range(max(MIN_POINTS, int(detected[0]) + 1), usage.size + 1):
             p = last if k == usage.size else predict(usage[:k], s[:k], limits.failure, law,
-                                                     seed=1000 * index + k, noise_floor=floor)
+                                                     seed=1000 * index + k, noise_floor=floor[:k])
             history.append({"usage": float(usage[k - 1]), "median": _finite(p.rul_median),
                             "low": _finite(p.rul_low), "high": _finite(p.rul_high)})
         entry.update({
@@ -67,6 +67,7 @@ def analyse(table: HistoryTable, params: Parameters, law: str = "auto") -> dict:
                     "high": _finite(last.rul_high)},
             "failure_at": _finite(last.now + last.rul_median),
             "predictions": history,
+            "uncertainty": _uncertainty(table, fault),
         })
         if table.truth is not None:
             failure = table.failure_usage.get(fault, math.inf) if table.failure_usage else math.inf
@@ -81,6 +82,24 @@ def analyse(table: HistoryTable, params: Parameters, law: str = "auto") -> dict:
         "parameters": params.source_file,
         "emaprog_version": __version__,
     }
+
+
+def inspection_sigma(table: HistoryTable, fault: str) -> np.ndarray:
+    """Each inspection's severity standard deviation: its own (from its report's 90 %
+    interval), else the campaign figure :attr:`~emaprog.faults.Fault.identification_sigma`."""
+    fallback = FAULTS[fault].identification_sigma
+    own = table.sigma[fault] if table.sigma is not None else np.full(table.usage.size, np.nan)
+    return np.where(np.isfinite(own), own, fallback)
+
+
+def _uncertainty(table: HistoryTable, fault: str) -> str:
+    own = table.sigma[fault] if table.sigma is not None else np.full(table.usage.size, np.nan)
+    count = int(np.isfinite(own).sum())
+    if count == own.size:
+        return "each inspection's own interval"
+    if count == 0:
+        return "the campaign figure (no inspection carries an interval)"
+    return f"each inspection's own interval ({count} of {own.size}), else the campaign figure"
 
 
 def _metrics(history: list[dict], failure: float, last) -> dict:

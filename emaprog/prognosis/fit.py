@@ -145,12 +145,13 @@ class Prediction(NamedTuple):
 
 
 def predict(usage: np.ndarray, severity: np.ndarray, threshold: float, law: str = "auto",
-            seed: int = 0, noise_floor: float = 0.0) -> Prediction:
+            seed: int = 0, noise_floor: float | np.ndarray = 0.0) -> Prediction:
     """RUL to ``threshold`` from the last inspection, with its bootstrap distribution.
 
     A fault already past the threshold has RUL 0. The bootstrap adds Gaussian
     errors of standard deviation ``max(residual spread, noise_floor)`` to the
-    chosen law's fit (``numpy.random.Generator`` from ``seed``).
+    chosen law's fit (``numpy.random.Generator`` from ``seed``); ``noise_floor``
+    is one figure or each inspection's own (its identification's uncertainty).
     """
     usage, severity = np.asarray(usage, float), np.asarray(severity, float)
     if usage.size < MIN_POINTS:
@@ -158,7 +159,7 @@ def predict(usage: np.ndarray, severity: np.ndarray, threshold: float, law: str 
     best = fit(usage, severity, law)
     now = float(usage[-1])
     fitted = growth(best.law, usage, best.a, best.b)
-    spread = max(best.sigma, noise_floor)
+    spread = np.maximum(best.sigma, np.broadcast_to(np.asarray(noise_floor, float), fitted.shape))
     rng = np.random.default_rng(np.random.SeedSequence(seed))
     replicates = fitted + rng.normal(0.0, spread, size=(BOOTSTRAP, fitted.size))
     a, b = _refit_replicates(best, usage, replicates)

@@ -28,7 +28,10 @@ import pyarrow.parquet as pq
 
 from ..campaign import cases as campaigns
 from ..errors import InputError
-from ..faults import CATALOGUE, FAULT_NAMES, QUANTITIES, flat_from_nested, healthy_values, severity
+from ..identification.confidence import Z90, severity_interval
+from ..faults import (
+    CATALOGUE, FAULT_NAMES, FAULTS, QUANTITIES, flat_from_nested, healthy_values, severity,
+)
 from ..config.parameters import Parameters
 from ..config.scenario import Faults, History, Scenario
 
@@ -44,6 +47,38 @@ class HistoryTable(NamedTuple):
     severity: dict[str, np.ndarray]  # estimated severity per fault at each inspection
     truth: dict[str, np.ndarray] | None  # true severity (synthetic histories only)
     failure_usage: dict[str, float] | None  # [h] true usage at the failure threshold
+    #: per fault, each inspection's own standard deviation of the severity (from its 90 %
+    #: interval); NaN where the inspection has none (a report of an older emaprog, a table)
+    sigma: dict[str, np.ndarray] | None = None
+
+
+def severity_sigma(fault: str, values: dict[str, float],
+                   interval: dict[str, tuple[float, float] | None]) -> float:
+    """A fault's severity standard deviation from its quantities' 90 % intervals (NaN: none)."""
+    if any(interval.get(q.name) is None for q in FAULTS[fault].magnitudes):
+        return math.nan
+    low, high = severity_interval(fault, interval, values)
+    return (high - low) / (2.0 * Z90)
+
+
+def _interval_of(report: dict) -> dict[str, tuple[float, float] | None]:
+    """A report's ``interval`` key flattened like its estimate ({} when it has none)."""
+    tree = report.get("interval")
+    if not isinstance(tree, dict):
+        return {}
+    out = {}
+    for fault in CATALOGUE:
+        value = tree.get(fault.name)
+        for q in fault.quantities:
+            item = value if q.key is None else (value or {}).get(q.key)
+            out[q.name] = (float(item[0]), float(item[1])) if item is not None else None
+    return out
+
+
+def _sigmas(values: list[dict[str, float]],
+            intervals: list[dict[str, tuple[float, float] | None]]) -> dict[str, np.ndarray]:
+    return {f: np.array([severity_sigma(f, v, i) for v, i in zip(values, intervals)])
+            for f in FAULT_NAMES}
 
 
 def _severities(values: list[dict[str, float]]) -> dict[str, np.ndarray]:
@@ -111,7 +146,7 @@ def read_reports(folder: str | Path) -> HistoryTable:
         except (KeyError, TypeError, ValueError):
             raise InputError(path, "lacks inspection.actuator, inspection.usage or a full estimate "
                              "(identify with --actuator ID --usage HOURS)", "inspection") from None
-        entries.append((usage, actuator, values, path))
+        entries.append((usage, actuator, values, path, _interval_of(report)))
     actuators = sorted({e[1] for e in entries})
     if len(actuators) != 1:
         raise InputError(folder, f"mixes actuators ({', '.join(actuators[:5])}); a history is one "
@@ -123,7 +158,7 @@ def read_reports(folder: str | Path) -> HistoryTable:
         raise InputError(repeated[0], "repeats the usage of another report", "inspection.usage")
     _check_usage(usage, folder, "inspection.usage")
     return HistoryTable(actuators[0], str(folder), usage, _severities([e[2] for e in entries]),
-                        None, None)
+                        None, None, _sigmas([e[2] for e in entries], [e[4] for e in entries]))
 
 
 # ---------------------------------------------------------------- synthetic histories
@@ -219,5 +254,8 @@ def from_cases(history: History, params: Parameters, store: campaigns.CaseStore,
     laws = realised_laws(history)
     failure = {f: failure_usage(law, getattr(params.spec.health, f).failure)
                for f, law in laws.items()}
+    intervals = [{q: (float(row[f"low_{q}"]), float(row[f"high_{q}"]))
+                  if f"low_{q}" in row and np.isfinite(row[f"low_{q}"]) else None
+                  for q in QUANTITIES} for _, row in frame.iterrows()]
     return HistoryTable(history.actuator, source, usage, _severities(estimated),
-                        _severities(true), failure)
+                        _severities(true), failure, _sigmas(estimated, intervals))

@@ -1,0 +1,402 @@
+"""How sure an identification is: noise floor, identifiability, 90 % intervals, isolation.
+
+Three questions, answered after the optimiser has its estimate:
+
+1. **Does the Monitor explain the recording?** The recording's own noise floor
+   is estimated from its high-frequency part (:func:`noise_sigma`, a robust
+   second-difference estimate that passes the slow signal and resolves the
+   ADC step), and turned into the fitness a perfect model would reach on that
+   recording: the 1 ms mean leaves ``sigma^2 / width`` of white noise on every
+   filtered sample. ``explained`` is ``fitness <= MAX_FLOOR_RATIO x floor``
+   (:data:`MAX_FLOOR_RATIO`, chosen by measurement; see its comment). When it
+   is not, every verdict is ``inconclusive``.
+
+2. **What does the recording determine?** The Jacobian of the filtered,
+   weighted residual (the vector whose squared norm is the fitness) with
+   respect to each estimated quantity, by finite differences of the Monitor at
+   the estimate, with unquantised feedback (as in commissioning: the ADC makes
+   the residual a staircase in the parameters). Eccentricity is differentiated
+   in the plane ``(zeta cos phi, zeta sin phi)``, where it is smooth.
+
+3. **How far can each estimate be off?** The linearised covariance of a
+   weighted least-squares estimate with correlated residuals, the sandwich
+   ``A^-1 B A^-1``, ``A = J^T J``, ``B = sum_b s_b^2 L_b J_b^T J_b`` over the
+   signal blocks ``b`` (current, position, speed), ``s_b^2`` the block's
+   residual variance and ``L_b`` its correlation length in samples
+   (:func:`correlation_length`: the effective sample count is ``n / L``). That
+   sees the noise but not the Monitor's deterministic mismatch with the motor,
+   which dominates on clean recordings (measured on the quick campaign: 32-70 %
+   coverage as it is): each fault's standard errors are multiplied by its
+   :attr:`~emaprog.faults.Fault.model_error_factor`, calibrated on the quick
+   campaign and checked on the robustness campaign. The 90 % interval is
+   ``estimate +- 1.645 sigma`` clipped to the quantity's range; the
+   eccentricity phase gets an arc (the whole circle when the phase is not
+   determined). A fault whose severity interval is wider on
+   either side than its incipient threshold is not determined by the recording:
+   ``inconclusive``, and its number is not presented as a finding.
+
+Short-circuit isolation: the fitness penalty of moving the short onto the next
+most likely phase, as a chi-square difference on the effective sample count,
+and the two-hypothesis probability ``1 / (1 + exp(-dchi2 / 2))``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from ..faults import CATALOGUE, FAULTS, PHASE_FAULT, QUANTITIES, worst_phase
+from ..kernels.structs import Plant
+from .objective import SIGNALS, Objective, low_pass
+
+Z90 = 1.6448536269514722  # two-sided 90 % quantile of the normal distribution
+#: [-] fitness over the recording's noise floor above which the Monitor does not explain it.
+MAX_FLOOR_RATIO = 10.0
+#: Finite-difference step per quantity, as a share of its search span.
+STEP_SHARE = 2e-3
+#: [-] unquantised feedback for the Jacobian (commissioning's reason: a smooth residual).
+QUANTISATION = 1e-9
+
+
+class NoiseFloor(NamedTuple):
+    sigma: dict[str, float]  # per signal, raw samples [its unit]
+    fitness: float  # the fitness a model with no error would reach on this recording [-]
+    ratio: float  # the identification's fitness over it [-]
+    explained: bool
+
+
+class Confidence(NamedTuple):
+    floor: NoiseFloor
+    interval: dict[str, tuple[float, float]]  # per estimated quantity [low, high]
+    standard_error: dict[str, float]  # per estimated quantity (eccentricity: zeta, phase)
+    inconclusive: dict[str, str]  # fault -> why (only the inconclusive ones)
+    isolation: dict | None  # short-circuit phase confidence, when a short is named
+    method: str
+
+
+def noise_sigma(x: np.ndarray, lsb: float) -> float:
+    """Standard deviation of a signal's white noise, from the signal itself [its unit].
+
+    The second difference removes what is slow (a 10 Hz chirp moves the
+    position by 2e-6 rad between 0.1 ms samples) and multiplies white noise's
+    variance by 6; the median absolute value (x 1.4826) ignores the steps at
+    commutations. The ADC's rounding (``lsb^2 / 12``) is the least noise a
+    recorded signal can carry.
+    """
+    x = np.asarray(x, dtype=np.float64)
+    if x.size < 3:
+        return lsb / math.sqrt(12.0)
+    d2 = x[2:] - 2.0 * x[1:-1] + x[:-2]
+    sigma = 1.4826 * float(np.median(np.abs(d2))) / math.sqrt(6.0)
+    return math.sqrt(sigma ** 2 + lsb ** 2 / 12.0)
+
+
+def noise_floor(objective: Objective, trace, fitness: float) -> NoiseFloor:
+    """The recording's noise floor in fitness units, and how far the fit is above it."""
+    sensors = objective.params.plant.sensors
+    lsb = {"current": sensors.current_lsb, "position": sensors.position_lsb,
+           "speed": sensors.speed_lsb}
+    target = objective.target
+    weight = target.sample_weight
+    total = float(weight.sum())
+    sigma, floor = {}, 0.0
+    for s, name in enumerate(SIGNALS):
+        sigma[name] = noise_sigma(trace[name], lsb[name])
+        if target.weights[s] == 0.0:
+            continue
+        measured = (target.current, target.position, target.speed)[s]
+        norm = max(float(weight @ measured ** 2), 1e-30)
+        floor += target.weights[s] * total * sigma[name] ** 2 / objective.measured_width / norm
+    floor = max(floor, 1e-30)
+    ratio = fitness / floor
+    return NoiseFloor(sigma, floor, ratio, bool(ratio <= MAX_FLOOR_RATIO))
+
+
+def correlation_length(residual: np.ndarray, blocks: list[int]) -> float:
+    """Samples per independent residual: the integrated autocorrelation time [samples].
+
+    The residual of a fit to real data is not white: the 1 ms mean correlates
+    neighbours, and what the Monitor does not model (the Reference's switching, a
+    real unit's unmodelled effects) runs over many milliseconds. Standard errors
+    from ``s^2 (J^T J)^-1`` count every sample as independent and would be
+    optimistic by the square root of this length. Per block (recording x signal):
+    ``1 + 2 sum rho_k`` up to the first non-positive autocorrelation; the
+    mean over the blocks, weighted by their length.
+    """
+    lengths, weights = [], []
+    for part in np.split(residual, np.cumsum(blocks)[:-1]):
+        x = part - part.mean()
+        n = x.size
+        if n < 2:
+            continue
+        spectrum = np.fft.rfft(x, 2 * n)
+        acf = np.fft.irfft(spectrum * np.conj(spectrum))[:n]
+        if acf[0] <= 0:
+            continue
+        rho = acf / acf[0]
+        stop = np.flatnonzero(rho <= 0)
+        k = int(stop[0]) if stop.size else n
+        lengths.append(1.0 + 2.0 * float(np.sum(rho[1:k])))
+        weights.append(n)
+    return float(np.average(lengths, weights=weights)) if lengths else 1.0
+
+
+def information_inverse(information: np.ndarray) -> np.ndarray:
+    """``(J^T J)^-1``, with infinite variance along directions the data do not constrain at
+    all (a parameter that changes nothing, e.g. static friction when the motor never sticks)."""
+    eigenvalues, vectors = np.linalg.eigh(information)
+    floor = 1e-12 * max(float(eigenvalues.max()), 1e-300)
+    cov = (vectors / np.maximum(eigenvalues, floor)) @ vectors.T
+    blind = vectors[:, eigenvalues <= floor]
+    if blind.size:
+        touched = np.any(np.abs(blind) > 1e-3, axis=1)
+        cov[touched, touched] = np.inf  # their variances (the diagonal)
+    return cov
+
+
+# ------------------------------------------------------------------ coordinates
+class _Coordinate(NamedTuple):
+    name: str  # a quantity, a nuisance, or "eccentricity_x" / "eccentricity_y"
+    lower: float
+    upper: float
+    step: float
+
+
+class _Plane(NamedTuple):
+    """The polar fault's magnitude and angle, and its Cartesian coordinates' names."""
+
+    fault: str
+    magnitude: str
+    angle: str
+    x: str
+    y: str
+
+
+def _plane() -> _Plane | None:
+    for fault in CATALOGUE:
+        if fault.layout == "polar":
+            m, a = (q.name for q in fault.quantities)
+            return _Plane(fault.name, m, a, f"{fault.name}_x", f"{fault.name}_y")
+    return None
+
+
+PLANE = _plane()
+
+
+def _coordinates(objective: Objective, values: dict[str, float]) -> tuple[list[_Coordinate], dict]:
+    """The smooth coordinates of the estimate: genes, the polar fault in the plane."""
+    coords, point = [], {}
+    for gene in objective.genes:
+        step = STEP_SHARE * (gene.upper - gene.lower)
+        if PLANE and gene.quantity == PLANE.angle:
+            continue
+        if PLANE and gene.quantity == PLANE.magnitude:
+            r, angle = values[PLANE.magnitude], values[PLANE.angle]
+            for name, v in ((PLANE.x, r * math.cos(angle)), (PLANE.y, r * math.sin(angle))):
+                coords.append(_Coordinate(name, -gene.upper, gene.upper, step))
+                point[name] = v
+            continue
+        coords.append(_Coordinate(gene.quantity, gene.lower, gene.upper, step))
+        point[gene.quantity] = values[gene.quantity]
+    return coords, point
+
+
+def _factor(coordinate: str) -> float:
+    """The model-error factor of a coordinate's fault (1 for a nuisance: not calibrated)."""
+    for fault in CATALOGUE:
+        plane = (PLANE.x, PLANE.y) if PLANE and fault.name == PLANE.fault else ()
+        if coordinate in {q.name for q in fault.quantities} or coordinate in plane:
+            return fault.model_error_factor
+    return 1.0
+
+
+def _values(base: dict[str, float], point: dict[str, float]) -> dict[str, float]:
+    """Fault values of a point in the coordinates (the plane back to magnitude and angle)."""
+    plane = (PLANE.x, PLANE.y) if PLANE else ()
+    out = {**base, **{k: v for k, v in point.items() if k not in plane}}
+    if PLANE and PLANE.x in point:
+        x, y = point[PLANE.x], point[PLANE.y]
+        out[PLANE.magnitude] = math.hypot(x, y)
+        out[PLANE.angle] = math.atan2(y, x) % (2.0 * math.pi)
+    return out
+
+
+def _fine_plant(plant: Plant) -> Plant:
+    s = plant.sensors
+    return plant._replace(sensors=s._replace(position_lsb=s.position_lsb * QUANTISATION,
+                                             speed_lsb=s.speed_lsb * QUANTISATION,
+                                             current_lsb=s.current_lsb * QUANTISATION))
+
+
+def residual_vector(objective: Objective, values: dict[str, float],
+                    plant: Plant | None = None) -> tuple[np.ndarray, list[int]]:
+    """The weighted, filtered residual whose squared norm is the fitness, and its blocks."""
+    outputs = objective.simulate(values, plant)
+    target = objective.target
+    used = target.sample_weight > 0.0
+    weight = target.sample_weight[used]
+    parts, blocks = [], []
+    measured_signals = (target.current, target.position, target.speed)
+    for s, name in enumerate(SIGNALS):
+        if target.weights[s] == 0.0:
+            continue
+        measured = measured_signals[s]
+        norm = max(float(target.sample_weight @ measured ** 2), 1e-30)
+        model = objective.instants.sample(low_pass(outputs[name], objective.filter_width))
+        parts.append(np.sqrt(target.weights[s] * weight / norm) * (model - measured)[used])
+        blocks.append(int(used.sum()))
+    return np.concatenate(parts), blocks
+
+
+def jacobian(objective: Objective, values: dict[str, float]) -> tuple[list[_Coordinate], np.ndarray]:
+    """d residual / d coordinate at ``values`` (central differences, one-sided at a bound)."""
+    coords, point = _coordinates(objective, values)
+    plant = _fine_plant(objective.params.plant)
+    columns = []
+    for c in coords:
+        up = min(point[c.name] + c.step, c.upper)
+        down = max(point[c.name] - c.step, c.lower)
+        if up - down <= 0.0:
+            up, down = point[c.name] + c.step, point[c.name]
+        r_up, _ = residual_vector(objective, _values(values, {**point, c.name: up}), plant)
+        r_down, _ = residual_vector(objective, _values(values, {**point, c.name: down}), plant)
+        columns.append((r_up - r_down) / (up - down))
+    return coords, np.array(columns).T
+
+
+def covariance(jac: np.ndarray, residual: np.ndarray, blocks: list[int]) -> np.ndarray:
+    """Sandwich covariance of the weighted least-squares estimate (module docstring)."""
+    a_inv = information_inverse(jac.T @ jac)
+    middle = np.zeros((jac.shape[1], jac.shape[1]))
+    edges = np.cumsum([0, *blocks])
+    dof_share = max(1.0 - jac.shape[1] / max(residual.size, 1), 0.5)
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        r, j = residual[lo:hi], jac[lo:hi]
+        s2 = float(r @ r) / (r.size * dof_share)
+        middle += s2 * correlation_length(r, [r.size]) * (j.T @ j)
+    finite = np.isfinite(np.diag(a_inv))
+    cov = np.full_like(a_inv, np.inf)
+    sub = np.ix_(finite, finite)
+    cov[sub] = a_inv[sub] @ middle[sub] @ a_inv[sub]
+    return cov
+
+
+def _clip(q_name: str, low: float, high: float) -> tuple[float, float]:
+    q = QUANTITIES[q_name]
+    return max(low, q.lower), min(high, q.upper)
+
+
+def assess(objective: Objective, trace, values: dict[str, float], fitness: float,
+           estimated: list[str], health_limits) -> Confidence:
+    """Noise floor, intervals, identifiability and isolation of one identification."""
+    floor = noise_floor(objective, trace, fitness)
+    residual, blocks = residual_vector(objective, values)
+    coords, jac = jacobian(objective, values)
+    factor = np.array([_factor(c.name) for c in coords])
+    cov = covariance(jac, residual, blocks) * np.outer(factor, factor)
+    sigma = {c.name: math.sqrt(cov[k, k]) if np.isfinite(cov[k, k]) else math.inf
+             for k, c in enumerate(coords)}
+    interval, standard_error = {}, {}
+    plane = (PLANE.x, PLANE.y) if PLANE else ()
+    for c in coords:
+        if c.name in plane:
+            continue
+        half = Z90 * sigma[c.name]
+        standard_error[c.name] = sigma[c.name]
+        if c.name in QUANTITIES:
+            interval[c.name] = _clip(c.name, values[c.name] - half, values[c.name] + half)
+        else:
+            interval[c.name] = (values[c.name] - half, values[c.name] + half)
+    if PLANE and PLANE.x in sigma:
+        k = [i for i, c in enumerate(coords) if c.name in plane]
+        block = cov[np.ix_(k, k)]
+        zeta, phase = values[PLANE.magnitude], values[PLANE.angle]
+        radial = np.array([math.cos(phase), math.sin(phase)])
+        tangent = np.array([-math.sin(phase), math.cos(phase)])
+        if np.all(np.isfinite(block)):
+            s_r = math.sqrt(max(float(radial @ block @ radial), 0.0))
+            s_t = math.sqrt(max(float(tangent @ block @ tangent), 0.0))
+        else:
+            s_r = s_t = math.inf
+        standard_error[PLANE.magnitude] = s_r
+        interval[PLANE.magnitude] = _clip(PLANE.magnitude, zeta - Z90 * s_r, zeta + Z90 * s_r)
+        arc = Z90 * s_t / zeta if zeta > 0 else math.inf
+        standard_error[PLANE.angle] = s_t / zeta if zeta > 0 else math.inf
+        interval[PLANE.angle] = ((0.0, 2.0 * math.pi) if arc >= math.pi
+                              else (phase - arc, phase + arc))
+    inconclusive = {}
+    for fault in estimated:
+        if not floor.explained:
+            inconclusive[fault] = (f"the Monitor does not explain the recording: fitness "
+                                   f"{fitness:.3g} is {floor.ratio:.0f} x the recording's noise "
+                                   f"floor {floor.fitness:.3g} (at most {MAX_FLOOR_RATIO:g} x)")
+            continue
+        threshold = getattr(health_limits, fault).incipient
+        worst = 0.0
+        for q in FAULTS[fault].magnitudes:
+            low, high = interval[q.name]
+            worst = max(worst, values[q.name] - low, high - values[q.name])
+        if not math.isfinite(worst) or worst > threshold:
+            inconclusive[fault] = (f"the recording does not determine it: 90 % interval "
+                                   f"+-{worst:.3g} about the estimate, wider than the incipient "
+                                   f"threshold {threshold:g}")
+    isolation = _isolation(objective, values, fitness, residual.size,
+                           correlation_length(residual, blocks)) \
+        if PHASE_FAULT in estimated else None
+    method = ("linearised (sandwich) covariance of the weighted least-squares fit at the "
+              "estimate, correlated residuals counted by their correlation length, times each "
+              "fault's model-error factor ("
+              + ", ".join(f"{f.name} {f.model_error_factor:g}" for f in CATALOGUE)
+              + "; calibrated on the quick campaign)")
+    return Confidence(floor, interval, standard_error, inconclusive, isolation, method)
+
+
+def _isolation(objective: Objective, values: dict[str, float], fitness: float, samples: int,
+               length: float) -> dict | None:
+    """Confidence in the named short-circuit phase against the runner-up (module docstring)."""
+    named = worst_phase(values)
+    if named is None:
+        return None
+    phases = {q.key: q.name for q in FAULTS[PHASE_FAULT].quantities}
+    others = sorted((p for p in phases if p != named), key=lambda p: -values[phases[p]])
+    runner = others[0]
+    moved = {**values, phases[named]: values[phases[runner]], phases[runner]: values[phases[named]]}
+    alternative = float(objective(objective.genes_for(moved)[None])[0])
+    effective = max(samples / max(length, 1.0), 1.0)
+    delta = max(alternative - fitness, 0.0) / max(fitness, 1e-300) * effective
+    confidence = 1.0 / (1.0 + math.exp(-min(delta, 1400.0) / 2.0))
+    return {"phase": named, "runner_up": runner, "delta_chi2": delta,
+            "confidence": confidence}
+
+
+def confidence_record(confidence: Confidence) -> dict:
+    """The report's ``confidence`` key (JSON types; an unbounded error is null)."""
+    def finite(x: float) -> float | None:
+        return float(x) if math.isfinite(x) else None
+
+    floor = confidence.floor
+    return {
+        "method": confidence.method,
+        "noise_floor": {"sigma": floor.sigma, "fitness": floor.fitness, "ratio": floor.ratio,
+                        "explained": floor.explained,
+                        "rule": f"explained when fitness <= {MAX_FLOOR_RATIO:g} x the floor"},
+        "standard_error": {q: finite(v) for q, v in confidence.standard_error.items()},
+        "inconclusive": confidence.inconclusive,
+        "isolation": confidence.isolation,
+    }
+
+
+def severity_interval(fault: str, interval: dict[str, tuple[float, float]],
+                      values: dict[str, float]) -> tuple[float, float]:
+    """Range of the fault's severity over its quantities' intervals (others at the estimate)."""
+    lows, highs = [], []
+    for q in FAULTS[fault].magnitudes:
+        low, high = interval[q.name]
+        lo_s = 0.0 if low <= q.healthy <= high else min(abs(low - q.healthy), abs(high - q.healthy))
+        lows.append(lo_s)
+        highs.append(max(abs(low - q.healthy), abs(high - q.healthy)))
+    return max(lows), max(highs)
+
+

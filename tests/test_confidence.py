@@ -1,0 +1,111 @@
+"""Confidence of an identification: the noise floor and the linearised covariance against
+closed forms, "inconclusive" for recordings that cannot tell, and the correction choice."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from emaprog.cli import app
+from emaprog.config import parameters
+from emaprog.config.scenario import Scenario, load_scenario
+from emaprog.identification.confidence import (
+    correlation_length, covariance, information_inverse, noise_sigma,
+)
+from emaprog.identification.objective import (
+    Correction, ResidualRecording, recording_correction,
+)
+from emaprog.io.storage import Trace, write_trace
+from emaprog.models import reference
+
+from .conftest import CONFIGS
+
+
+def test_noise_sigma_reads_white_noise_under_a_moving_signal():
+    """A 10 Hz, 0.05 rad chirp-like sine at 10 kHz with white noise of 1e-4 rad: the
+    second-difference estimate finds sigma within 5 % (2 % sampling error of a MAD over
+    5000 samples, x2 margin); the signal itself adds < 1e-6 rad per second difference."""
+    rng = np.random.default_rng(3)
+    t = np.arange(5000) / 1e4
+    x = 0.05 * np.sin(2 * np.pi * 10 * t) + rng.normal(0.0, 1e-4, t.size)
+    assert noise_sigma(x, 0.0) == pytest.approx(1e-4, rel=0.05)
+    # a quantised constant has no noise but its rounding: lsb / sqrt(12)
+    assert noise_sigma(np.full(100, 0.3), 1e-3) == pytest.approx(1e-3 / math.sqrt(12.0))
+
+
+def test_correlation_length_of_a_moving_average_is_its_width():
+    """White noise averaged over w samples has integrated autocorrelation time w
+    (1 + 2 sum_{k<w} (1 - k/w) = w); measured over 200 000 samples within 5 %."""
+    rng = np.random.default_rng(4)
+    width = 10
+    x = np.convolve(rng.normal(size=200_000), np.ones(width) / width, mode="valid")
+    assert correlation_length(x, [x.size]) == pytest.approx(width, rel=0.05)
+    assert correlation_length(rng.normal(size=50_000), [50_000]) == pytest.approx(1.0, abs=0.05)
+
+
+def test_sandwich_covariance_is_ordinary_least_squares_for_white_noise():
+    """y = J theta + e, e white with sigma 0.1: the covariance of the least-squares estimate
+    is sigma^2 (J^T J)^-1. From the residual of one realisation (two equal blocks), within
+    10 % on the diagonal (the variance estimate's 2 % sampling error, and the blocks'
+    correlation lengths of about 1 each estimated within a few %)."""
+    rng = np.random.default_rng(5)
+    jac = rng.normal(size=(4000, 3))
+    theta = np.array([1.0, -2.0, 0.5])
+    y = jac @ theta + rng.normal(0.0, 0.1, 4000)
+    estimate, *_ = np.linalg.lstsq(jac, y, rcond=None)
+    residual = jac @ estimate - y
+    cov = covariance(jac, residual, [2000, 2000])
+    expected = 0.01 * np.linalg.inv(jac.T @ jac)
+    assert np.diag(cov) == pytest.approx(np.diag(expected), rel=0.10)
+
+
+def test_a_parameter_that_changes_nothing_gets_infinite_variance():
+    jac = np.column_stack([np.linspace(0, 1, 50), np.zeros(50)])
+    cov = information_inverse(jac.T @ jac)
+    assert math.isfinite(cov[0, 0]) and cov[1, 1] == math.inf
+
+
+def _trace(command: np.ndarray, rate: float = 1e4) -> Trace:
+    n = command.size
+    time = np.arange(n) / rate
+    return Trace({"time": time, "command": command, "position": command, "speed": np.zeros(n),
+                  "current": np.zeros(n)}, {})
+
+
+def test_recording_correction_needs_the_same_command_on_the_same_grid():
+    """The commissioning residual is subtracted only from a trace that repeats its
+    command on its sample grid; otherwise the reason is given (and `reference` applies)."""
+    command = 0.05 * np.sin(np.linspace(0, 20, 1000))
+    residual = {name: np.full(1000, 0.1) for name in ("current", "position", "speed")}
+    recording = ResidualRecording("healthy.parquet", np.arange(1000) / 1e4, command, residual)
+    applied = recording_correction(_trace(command), recording)
+    assert isinstance(applied, Correction) and applied.applied == "recording"
+    assert "healthy.parquet" in recording_correction(_trace(command[:900]), recording)
+    assert "command" in recording_correction(_trace(1.1 * command), recording)
+    assert "grid" in recording_correction(_trace(command, rate=5e3), recording)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("command", [
+    {"kind": "constant", "offset": 0.0},  # the actuator at rest
+    {"kind": "chirp", "amplitude": 2.0e-5, "start_frequency": 0.5, "end_frequency": 10.0},
+])
+def test_a_recording_that_cannot_tell_is_inconclusive_for_every_fault(tmp_path, command):
+    """At rest (command 0, current ~ 0) or a command too small to move the motor past its
+    friction (2e-5 rad): exit 0, every verdict `inconclusive` with its reason, no fault
+    flagged, no short-circuit phase named as a finding; the report still has its intervals."""
+    data = load_scenario(CONFIGS / "fig10-multiple-faults.yaml").model_dump(mode="json")
+    data.update(name="cannot-tell", command=command)
+    trace = tmp_path / "trace.parquet"
+    write_trace(trace, reference.simulate(Scenario.model_validate(data), parameters.load("default")))
+    result = CliRunner().invoke(app, ["identify", str(trace), "-o", str(tmp_path / "r")])
+    assert result.exit_code == 0, result.output
+    report = json.loads((tmp_path / "r" / "report.json").read_text())
+    assert set(report["health"].values()) == {"inconclusive"}
+    assert set(report["confidence"]["inconclusive"]) == set(report["health"])
+    assert "inconclusive" in result.output and "on phase" not in result.output
+    assert report["interval"]["friction"] is not None
