@@ -19,6 +19,7 @@ from pathlib import Path
 import numba
 import numpy as np
 import yaml
+from numba import njit
 
 from emaprog import api
 
@@ -27,6 +28,7 @@ from emaprog.faults import flatten, healthy_values, monitor_form, reference_form
 from emaprog.identification.objective import Objective
 from emaprog.models import monitor, reference
 from emaprog.models.common import inputs
+from emaprog.numerics import DEFAULT
 from emaprog.config.scenario import IdentifySettings, load_scenario
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -38,6 +40,31 @@ BARS = {  # SPEC 10: (bar, "max" or "min")
     "monitor_chirp_ms": (2.0, "max"),
     "identify_s": (10.0, "max"),
 }
+
+
+@njit(cache=True)
+def plain_loop(command: np.ndarray, substeps: int, out: np.ndarray) -> None:
+    """The yardstick: a plain single-phase motor in numba over the Monitor's step count.
+
+    One sinusoidal back-EMF (one sin per step), R-L winding, inertia and viscous load,
+    a PI speed loop at the controller rate feeding a P current loop, explicit Euler.
+    Figures are also given as multiples of its time (``*_per_plain``): absolute times on
+    shared machines drift, the ratio much less.
+    """
+    r, l, k, j, b, poles = 1.2, 2.5e-3, 0.15, 1.5e-4, 5e-4, 4
+    dt = 1e-4 / substeps  # the default controller's 10 kHz
+    i = w = theta = integral = i_ref = 0.0
+    for n in range(command.size):
+        error = 180.0 * 2000.0 * command[n] - w
+        integral += error * 1e-4
+        i_ref = min(max(0.02 * error + 0.5 * integral, -25.0), 25.0)
+        for _ in range(substeps):
+            e = k * w * np.sin(poles * theta)
+            v = min(max(40.0 * (i_ref - i), -270.0), 270.0)
+            i += dt * (v - r * i - e) / l
+            w += dt * (k * i - b * w) / j
+            theta += dt * w
+        out[n] = i
 
 
 def median_time(func, repeat: int) -> float:
@@ -73,6 +100,10 @@ def measure(repeat: int) -> dict[str, float]:
     figures: dict[str, float] = {}
 
     numba.set_num_threads(1)  # "one core" figures
+    substeps = DEFAULT.monitor_substeps  # the Monitor's steps per controller period
+    plain_out = np.empty(inp.command.size)
+    plain_s = median_time(lambda: plain_loop(inp.command, substeps, plain_out), max(repeat, 20))
+    figures["plain_loop_ms"] = 1e3 * plain_s
     figures["reference_chirp_ms"] = 1e3 * median_time(
         lambda: reference.run(params, inp, faults, scenario.seed), repeat)
     figures["monitor_chirp_ms"] = 1e3 * median_time(
@@ -94,6 +125,9 @@ def measure(repeat: int) -> dict[str, float]:
     figures["sweep_cases_per_min"] = SWEEP_CASES / (median_time(
         lambda: sweep_once(SWEEP_CASES), max(1, repeat // 2)) / 60.0)
     figures["cores"] = numba.config.NUMBA_NUM_THREADS
+    for name in ("reference_chirp_ms", "monitor_chirp_ms"):
+        figures[name.replace("_ms", "_per_plain")] = figures[name] / figures["plain_loop_ms"]
+    figures["identify_per_plain"] = figures["identify_s"] / plain_s
     return figures
 
 

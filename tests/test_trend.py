@@ -18,6 +18,7 @@ import yaml
 from typer.testing import CliRunner
 
 from emaprog.cli import app
+from emaprog.faults import FAULTS
 from emaprog.prognosis.history import HistoryTable
 from emaprog.prognosis.fit import crossing, growth, predict, prognostic_horizon, relative_accuracy
 from emaprog.prognosis.analysis import analyse
@@ -93,6 +94,25 @@ def test_an_undetected_fault_is_not_extrapolated_and_a_growing_one_is(params):
     assert f["short_circuit"]["predictions"][0]["usage"] >= f["short_circuit"]["detected_at"]
 
 
+def test_each_inspections_own_uncertainty_widens_or_narrows_the_rul(params):
+    """The RUL bootstrap draws each inspection's error from its own interval: a history whose
+    inspections were four times less certain than the campaign figure gives a wider 90 % RUL
+    interval than one twice as certain (same estimates; at least 1.5x wider, measured ~3x),
+    and the report says whose uncertainty it used."""
+    severity = {"friction": 0.1 + 4e-4 * USAGE, "backlash": np.zeros(USAGE.size),
+                "short_circuit": np.zeros(USAGE.size), "eccentricity": np.zeros(USAGE.size)}
+    campaign = FAULTS["friction"].identification_sigma
+    widths = {}
+    for label, sigma in (("sure", 0.5 * campaign), ("unsure", 4.0 * campaign)):
+        own = {f: np.full(USAGE.size, sigma) for f in severity}
+        result = analyse(_table(severity)._replace(sigma=own), params)["faults"]["friction"]
+        assert result["uncertainty"] == "each inspection's own interval"
+        widths[label] = result["rul"]["high"] - result["rul"]["low"]
+    assert widths["unsure"] > 1.5 * widths["sure"], widths
+    fallback = analyse(_table(severity), params)["faults"]["friction"]
+    assert fallback["uncertainty"].startswith("the campaign figure")
+
+
 # ---------------------------------------------------------------- inputs and CLI
 def _write_table(path, actuators=("ema-7",), usage=USAGE, drop=None):
     columns = {"actuator": [actuators[k % len(actuators)] for k in range(usage.size)],
@@ -163,6 +183,7 @@ def test_simulated_history_end_to_end_and_resumable(tmp_path):
     assert friction["truth"] == pytest.approx([0.1, 0.35, 0.6, 0.85])
     assert np.allclose(friction["severity"], friction["truth"], atol=0.1)
     assert friction["metrics"]["true_failure_at"] == pytest.approx((1.5 - 0.1) / 5e-4)
+    assert friction["uncertainty"] == "each inspection's own interval"
     assert len(list((out / "inspections" / "cases").glob("case-*.parquet"))) == 4
     again = runner.invoke(app, ["trend", str(path), "--simulate", "-o", str(out), "--resume"])
     assert again.exit_code == 0

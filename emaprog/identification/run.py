@@ -118,6 +118,27 @@ def single_phase_starts(objective: Objective, genes: np.ndarray) -> list[np.ndar
     return [candidates[int(np.argmin(fitness))]]
 
 
+def polish(objective: Objective, start: np.ndarray,
+           fitness: float) -> tuple[np.ndarray, float, bool]:
+    """The local search after a global one: bounded Powell (in :class:`PolishCoordinates`)
+    from ``start``, then from the best single-phase start of the polished estimate.
+
+    Returns the best genes, their fitness and whether the polish improved on ``start``.
+    """
+    plane = PolishCoordinates(objective)
+    best, best_fitness, refined = start, fitness, False
+    for stage in range(2):
+        # stage 1: the single-phase starts from the polished estimate (its other faults fitted)
+        for origin in [best] if stage == 0 else single_phase_starts(objective, best):
+            found = local_minimize(lambda u: float(objective(plane.genes(u)[None])[0]),
+                                   plane.coordinates(origin), method="Powell", bounds=plane.bounds,
+                                   options={"maxfev": REFINE_EVALUATIONS, "xtol": 1e-4,
+                                            "ftol": 1e-6})
+            if found.fun < best_fitness:
+                best, best_fitness, refined = plane.genes(found.x), float(found.fun), True
+    return best, best_fitness, refined
+
+
 def choose_correction(trace: Trace, inputs: Inputs, params: Parameters,
                       settings: IdentifySettings, numerics: Numerics = DEFAULT,
                       recordings: list[ResidualRecording | str] = ()) -> Correction:
@@ -164,21 +185,7 @@ def identify_trace(trace: Trace, inputs: Inputs, params: Parameters, settings: I
                           on_generation=on_generation)
     best, best_fitness, refined = result.best, result.fitness, False
     if settings.refine:
-        plane = PolishCoordinates(objective)
-
-        def polish(origin: np.ndarray) -> None:
-            nonlocal best, best_fitness, refined
-            found = local_minimize(lambda u: float(objective(plane.genes(u)[None])[0]),
-                                   plane.coordinates(origin), method="Powell", bounds=plane.bounds,
-                                   options={"maxfev": REFINE_EVALUATIONS, "xtol": 1e-4,
-                                            "ftol": 1e-6})
-            if found.fun < best_fitness:
-                best, best_fitness, refined = plane.genes(found.x), float(found.fun), True
-
-        polish(result.best)
-        # the single-phase starts from the polished estimate: its other faults already fitted
-        for origin in single_phase_starts(objective, best):
-            polish(origin)
+        best, best_fitness, refined = polish(objective, result.best, result.fitness)
     estimate = objective.values(best)
     confidence = assess(objective, trace, estimate, best_fitness, settings.estimate,
                         params.spec.health)

@@ -52,12 +52,11 @@ class HistoryTable(NamedTuple):
     sigma: dict[str, np.ndarray] | None = None
 
 
-def severity_sigma(fault: str, values: dict[str, float],
-                   interval: dict[str, tuple[float, float] | None]) -> float:
+def severity_sigma(fault: str, interval: dict[str, tuple[float, float] | None]) -> float:
     """A fault's severity standard deviation from its quantities' 90 % intervals (NaN: none)."""
     if any(interval.get(q.name) is None for q in FAULTS[fault].magnitudes):
         return math.nan
-    low, high = severity_interval(fault, interval, values)
+    low, high = severity_interval(fault, interval)
     return (high - low) / (2.0 * Z90)
 
 
@@ -75,9 +74,8 @@ def _interval_of(report: dict) -> dict[str, tuple[float, float] | None]:
     return out
 
 
-def _sigmas(values: list[dict[str, float]],
-            intervals: list[dict[str, tuple[float, float] | None]]) -> dict[str, np.ndarray]:
-    return {f: np.array([severity_sigma(f, v, i) for v, i in zip(values, intervals)])
+def _sigmas(intervals: list[dict[str, tuple[float, float] | None]]) -> dict[str, np.ndarray]:
+    return {f: np.array([severity_sigma(f, i) for i in intervals])
             for f in FAULT_NAMES}
 
 
@@ -158,7 +156,7 @@ def read_reports(folder: str | Path) -> HistoryTable:
         raise InputError(repeated[0], "repeats the usage of another report", "inspection.usage")
     _check_usage(usage, folder, "inspection.usage")
     return HistoryTable(actuators[0], str(folder), usage, _severities([e[2] for e in entries]),
-                        None, None, _sigmas([e[2] for e in entries], [e[4] for e in entries]))
+                        None, None, _sigmas([e[4] for e in entries]))
 
 
 # ---------------------------------------------------------------- synthetic histories
@@ -258,4 +256,4 @@ def from_cases(history: History, params: Parameters, store: campaigns.CaseStore,
                   if f"low_{q}" in row and np.isfinite(row[f"low_{q}"]) else None
                   for q in QUANTITIES} for _, row in frame.iterrows()]
     return HistoryTable(history.actuator, source, usage, _severities(estimated),
-                        _severities(true), failure, _sigmas(estimated, intervals))
+                        _severities(true), failure, _sigmas(intervals))
