@@ -65,15 +65,16 @@ class Fault(NamedTuple):
     #: smaller (docs/sweep/quick) but the tails are not (largest shorted fraction error 0.07).
     identification_sigma: float
     #: [-] factor on the linearised standard errors of its quantities: the Monitor's
-    #: deterministic mismatch with the three-phase motor, which the residual's noise does
-    #: not show, widens the real error distribution. Calibrated on the quick campaign (50
-    #: twin cases, noisy Reference traces) and the robustness campaign (50 spread units,
-    #: commissioned, nuisances estimated): |error| over the linearised 90 % half-width has
-    #: its 90th percentile at friction 1.71 / 2.31, backlash 2.86 / 4.58, short circuit
-    #: 3.01 / 1.98, eccentricity 3.04 / 2.42 (quick / robustness); each factor is one
-    #: that puts every quantity of the fault at 85-95 % coverage on both (short circuit:
-    #: none does; 3.0 gives 88-94 % on quick and 94-100 % on robustness, the safe side).
-    #: Checked on the regression campaign and the six shipped twins (tests).
+    #: deterministic mismatch with the three-phase motor (and, on a commissioned unit, the
+    #: baseline's own error), which the residual's noise does not show, widens the real
+    #: error distribution. Calibrated on the quick campaign (50 twin cases, noisy Reference
+    #: traces) and the robustness campaign (50 spread units, commissioned, nuisances
+    #: estimated), least-squares polish: the factor that brings each quantity's 90 %
+    #: interval nearest 85-95 % coverage on both (coverage at the chosen factor, quick /
+    #: robustness: friction 0.96 / 0.86, backlash 0.90 / 0.86, short circuit 0.90-0.94 /
+    #: 0.90-0.92, zeta 0.90 / 1.00, eccentricity phase 0.82 / 0.88; friction and the phase
+    #: have no single factor inside the band on both). Checked on the regression
+    #: campaign and the six shipped twins (tests).
     model_error_factor: float
 
     @property
@@ -91,14 +92,14 @@ CATALOGUE: tuple[Fault, ...] = (
     Fault("friction", "dry-friction increase", "scalar",
           (Quantity("friction", None, "-", 1.0, 0.1, 10.0, False, "friction multiplier", "relative",
                     0.05, False),),
-          "friction |k_f - 1| [-]", (0.5, 4.0), (0.1, 10.0), 0.019, 2.2),
+          "friction |k_f - 1| [-]", (0.5, 4.0), (0.1, 10.0), 0.019, 2.5),
     Fault("backlash", "backlash", "scalar",
           (Quantity("backlash", None, "rad", 0.0, 0.0, 0.01, False, "backlash", "absolute", 5e-5,
                     False),),
-          "backlash, total play [rad]", (0.0, 1.5e-3), (0.0, 0.01), 1.9e-5, 3.6),
+          "backlash, total play [rad]", (0.0, 1.5e-3), (0.0, 0.01), 1.9e-5, 4.5),
     Fault("short_circuit", "phase short circuit", "per_phase",
           tuple(_phase(x) for x in "abc"),
-          "short circuit, worst phase [-]", (0.0, 0.5), (0.0, 0.95), 0.02, 3.0),
+          "short circuit, worst phase [-]", (0.0, 0.5), (0.0, 0.95), 0.02, 2.8),
     Fault("eccentricity", "rotor static eccentricity", "polar",
           (Quantity("eccentricity_zeta", "zeta", "-", 0.0, 0.0, 1.0, True, "eccentricity zeta",
                     "absolute", 0.05, False),

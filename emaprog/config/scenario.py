@@ -198,6 +198,10 @@ class IdentifySettings(Strict):
     signals: Signals = Signals()
     ga: GASettings = GASettings()
     refine: bool = True
+    polish: Literal["powell", "least_squares"] = Field(
+        "least_squares", description="local search after the GA (with refine): bounded Powell, or "
+                              "trust-region least squares on the residual with a batched "
+                              "Jacobian")
     max_speed: Optional[_num(0.0, 1.0e4, lo_open=True,
                              description="[rad/s] motor speed above which samples are left "
                                          "out of the error; omitted: 40 % of the DC bus as "

@@ -38,7 +38,9 @@ from ..config.parameters import Parameters
 from ..errors import InputError
 from ..faults import healthy_values, monitor_form
 from ..identification.confidence import correlation_length, information_inverse
-from ..identification.objective import FILTER_SECONDS, STARTUP_SECONDS, filter_lag, low_pass
+from ..identification.objective import (
+    FILTER_SECONDS, STARTUP_SECONDS, filter_lag, fine_plant, low_pass,
+)
 from ..io.storage import Trace
 from ..kernels.monitor import simulate_monitor
 from ..kernels.structs import MonitorOutputs, Plant
@@ -73,13 +75,6 @@ UNKNOWNS = (
 MAX_LOG_ERROR = 0.05
 #: Finite-difference step of the Jacobian (in log factor, and hinge moment / HINGE_SCALE).
 DIFF_STEP = 1e-4
-#: [-] ADC steps of the fed-back signals in the fitted Monitor, as a share of the real ones.
-#: With the real ADC the loop acts on quantised position and speed, which makes the residual
-#: a staircase in the parameters: finite differences below 1e-3 then measure its jumps
-#: (slopes growing as 1/step, measured 40-100x too large) and the fit stalls where it starts.
-#: Without it the slopes agree from 1e-5 to 1e-3; the quantisation itself (6e-5 rad,
-#: 0.12 rad/s at 14 bit) is far below what the unit parameters change.
-QUANTISATION = 1e-9
 HINGE_SCALE = 100.0  # [N m] hinge moments are fitted in this unit (conditioning)
 HINGE_BOUND = 3000.0  # [N m]
 MIN_DURATION = 0.2  # [s] shorter recordings do not excite the slow mechanical terms
@@ -168,10 +163,8 @@ class _Problem:
                                    for u in UNKNOWNS if u.section == "mechanical"
                                    and u.name != "static_friction"},
                                 static_friction=dynamic * self.base_ratio * factors["ratio"])
-        sensors = base.sensors._replace(position_lsb=base.sensors.position_lsb * QUANTISATION,
-                                        speed_lsb=base.sensors.speed_lsb * QUANTISATION,
-                                        current_lsb=base.sensors.current_lsb * QUANTISATION)
-        return Plant(electrical, mechanical, base.controller, sensors)
+        # unquantised feedback: a smooth residual for the finite-difference Jacobian
+        return fine_plant(Plant(electrical, mechanical, base.controller, base.sensors))
 
     def factors(self, x: np.ndarray) -> dict[str, float]:
         out = {u.name: 1.0 for u in UNKNOWNS}

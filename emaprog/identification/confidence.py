@@ -51,7 +51,7 @@ import numpy as np
 
 from ..faults import CATALOGUE, FAULTS, PHASE_FAULT, QUANTITIES, worst_phase
 from ..kernels.structs import Plant
-from .objective import SIGNALS, Objective, low_pass
+from .objective import SIGNALS, Objective, fine_plant
 
 Z90 = 1.6448536269514722  # two-sided 90 % quantile of the normal distribution
 #: [-] fitness over the recording's noise floor above which the Monitor does not explain it.
@@ -64,8 +64,6 @@ Z90 = 1.6448536269514722  # two-sided 90 % quantile of the normal distribution
 MAX_FLOOR_RATIO = 25.0
 #: Finite-difference step per quantity, as a share of its search span.
 STEP_SHARE = 2e-3
-#: [-] unquantised feedback for the Jacobian (commissioning's reason: a smooth residual).
-QUANTISATION = 1e-9
 
 
 class NoiseFloor(NamedTuple):
@@ -231,47 +229,31 @@ def _values(base: dict[str, float], point: dict[str, float]) -> dict[str, float]
     return out
 
 
-def _fine_plant(plant: Plant) -> Plant:
-    s = plant.sensors
-    return plant._replace(sensors=s._replace(position_lsb=s.position_lsb * QUANTISATION,
-                                             speed_lsb=s.speed_lsb * QUANTISATION,
-                                             current_lsb=s.current_lsb * QUANTISATION))
-
-
 def residual_vector(objective: Objective, values: dict[str, float],
                     plant: Plant | None = None) -> tuple[np.ndarray, list[int]]:
-    """The weighted, filtered residual whose squared norm is the fitness, and its blocks."""
-    outputs = objective.simulate(values, plant)
-    target = objective.target
-    used = target.sample_weight > 0.0
-    weight = target.sample_weight[used]
-    parts, blocks = [], []
-    measured_signals = (target.current, target.position, target.speed)
-    for s, name in enumerate(SIGNALS):
-        if target.weights[s] == 0.0:
-            continue
-        measured = measured_signals[s]
-        norm = max(float(target.sample_weight @ measured ** 2), 1e-30)
-        model = objective.instants.sample(low_pass(outputs[name], objective.filter_width))
-        parts.append(np.sqrt(target.weights[s] * weight / norm) * (model - measured)[used])
-        blocks.append(int(used.sum()))
-    return np.concatenate(parts), blocks
+    """The weighted, filtered residual whose squared norm is the fitness, and its blocks
+    (one per signal the fitness uses)."""
+    residual = objective.residuals(objective.genes_for(values)[None], plant)[0]
+    signals = int(np.count_nonzero(objective.target.weights))
+    return residual, [residual.size // signals] * signals
 
 
 def jacobian(objective: Objective, values: dict[str, float]) -> tuple[list[_Coordinate], np.ndarray]:
-    """d residual / d coordinate at ``values`` (central differences, one-sided at a bound)."""
+    """d residual / d coordinate at ``values`` (central differences, one-sided at a bound),
+    every perturbed Monitor in one batch, with unquantised feedback."""
     coords, point = _coordinates(objective, values)
-    plant = _fine_plant(objective.params.plant)
-    columns = []
+    rows, spans = [], []
     for c in coords:
         up = min(point[c.name] + c.step, c.upper)
         down = max(point[c.name] - c.step, c.lower)
         if up - down <= 0.0:
             up, down = point[c.name] + c.step, point[c.name]
-        r_up, _ = residual_vector(objective, _values(values, {**point, c.name: up}), plant)
-        r_down, _ = residual_vector(objective, _values(values, {**point, c.name: down}), plant)
-        columns.append((r_up - r_down) / (up - down))
-    return coords, np.array(columns).T
+        rows += [objective.genes_for(_values(values, {**point, c.name: x})) for x in (up, down)]
+        spans.append(up - down)
+    if not rows:
+        return coords, np.zeros((0, 0))
+    moved = objective.residuals(np.array(rows), fine_plant(objective.params.plant))
+    return coords, ((moved[0::2] - moved[1::2]) / np.array(spans)[:, None]).T
 
 
 def covariance(jac: np.ndarray, residual: np.ndarray, blocks: list[int]) -> np.ndarray:

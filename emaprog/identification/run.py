@@ -19,7 +19,7 @@ from ..io.storage import Trace
 from .confidence import Confidence, assess
 from .ga import GAOptions, minimize
 from .objective import (
-    NO_CORRECTION, Correction, Objective, ResidualRecording, recording_correction,
+    NO_CORRECTION, Correction, Objective, ResidualRecording, fine_plant, recording_correction,
     reference_correction,
 )
 
@@ -118,10 +118,59 @@ def single_phase_starts(objective: Objective, genes: np.ndarray) -> list[np.ndar
     return [candidates[int(np.argmin(fitness))]]
 
 
-def polish(objective: Objective, start: np.ndarray,
-           fitness: float) -> tuple[np.ndarray, float, bool]:
-    """The local search after a global one: bounded Powell (in :class:`PolishCoordinates`)
-    from ``start``, then from the best single-phase start of the polished estimate.
+#: Finite-difference step of the least-squares polish's Jacobian [polish coordinates, of 1].
+JACOBIAN_STEP = 1e-3
+def _powell(objective: Objective, plane: PolishCoordinates,
+            origin: np.ndarray) -> tuple[np.ndarray, float]:
+    found = local_minimize(lambda u: float(objective(plane.genes(u)[None])[0]),
+                           plane.coordinates(origin), method="Powell", bounds=plane.bounds,
+                           options={"maxfev": REFINE_EVALUATIONS, "xtol": 1e-4, "ftol": 1e-6})
+    return plane.genes(found.x), float(found.fun)
+
+
+def _least_squares(objective: Objective, plane: PolishCoordinates,
+                   origin: np.ndarray) -> tuple[np.ndarray, float]:
+    """Trust-region least squares on the residual vector, its Jacobian one batch per step."""
+    from scipy.optimize import least_squares
+
+    lower = np.array([b[0] for b in plane.bounds])
+    upper = np.array([b[1] for b in plane.bounds])
+    plant = fine_plant(objective.params.plant)
+    start = np.clip(plane.coordinates(origin), lower, upper)
+    last: dict = {}
+
+    def fun(u: np.ndarray) -> np.ndarray:
+        key = u.tobytes()
+        if key not in last:
+            last.clear()
+            last[key] = objective.residuals(plane.genes(u)[None], plant)[0]
+        return last[key]
+
+    def jac(u: np.ndarray) -> np.ndarray:
+        base = fun(u)
+        steps = np.where(u + JACOBIAN_STEP <= upper, JACOBIAN_STEP, -JACOBIAN_STEP)
+        shifted = u[None, :] + np.diag(steps)
+        moved = objective.residuals(np.array([plane.genes(x) for x in shifted]), plant)
+        return ((moved - base[None, :]) / steps[:, None]).T
+
+    found = least_squares(fun, start, jac=jac, bounds=(lower, upper), method="trf",
+                          x_scale=1.0, xtol=1e-6, ftol=1e-8, max_nfev=REFINE_STEPS)
+    genes = plane.genes(found.x)
+    return genes, float(objective(genes[None])[0])  # with the real ADC
+
+
+#: Steps of the least-squares polish (each one Monitor run and, for its Jacobian, a batch of
+#: one run per gene).
+REFINE_STEPS = 30
+POLISHERS = {"powell": _powell, "least_squares": _least_squares}
+
+
+def polish(objective: Objective, start: np.ndarray, fitness: float,
+           method: str = "powell") -> tuple[np.ndarray, float, bool]:
+    """The local search after a global one, in :class:`PolishCoordinates`: ``powell``
+    (bounded Powell, one Monitor run at a time) or ``least_squares`` (trust-region
+    least squares on the residual vector, the Jacobian in one batch per step); from
+    ``start``, then from the best single-phase start of the polished estimate.
 
     Returns the best genes, their fitness and whether the polish improved on ``start``.
     """
@@ -130,12 +179,9 @@ def polish(objective: Objective, start: np.ndarray,
     for stage in range(2):
         # stage 1: the single-phase starts from the polished estimate (its other faults fitted)
         for origin in [best] if stage == 0 else single_phase_starts(objective, best):
-            found = local_minimize(lambda u: float(objective(plane.genes(u)[None])[0]),
-                                   plane.coordinates(origin), method="Powell", bounds=plane.bounds,
-                                   options={"maxfev": REFINE_EVALUATIONS, "xtol": 1e-4,
-                                            "ftol": 1e-6})
-            if found.fun < best_fitness:
-                best, best_fitness, refined = plane.genes(found.x), float(found.fun), True
+            genes, value = POLISHERS[method](objective, plane, origin)
+            if value < best_fitness:
+                best, best_fitness, refined = genes, value, True
     return best, best_fitness, refined
 
 
@@ -185,7 +231,8 @@ def identify_trace(trace: Trace, inputs: Inputs, params: Parameters, settings: I
                           on_generation=on_generation)
     best, best_fitness, refined = result.best, result.fitness, False
     if settings.refine:
-        best, best_fitness, refined = polish(objective, result.best, result.fitness)
+        best, best_fitness, refined = polish(objective, result.best, result.fitness,
+                                             settings.polish)
     estimate = objective.values(best)
     confidence = assess(objective, trace, estimate, best_fitness, settings.estimate,
                         params.spec.health)

@@ -376,13 +376,21 @@ def _evaluate_parallel(faults, units, drive, electrical, mechanical, controller,
 
 
 @njit(cache=True)
-def _candidate_fitness(row, unit, drive, plant, options, target, norms):
-    """One candidate of :func:`evaluate_population`: run the Monitor, weigh its error."""
+def _simulate_candidate(row, unit, drive, plant, options):
+    """The Monitor outputs of one candidate row under its unit row."""
     n = drive.command.size
     candidate = MonitorFaults(row[0], row[1], row[2], row[3], row[4], row[5], row[6])
     own_drive = Drive(drive.command, drive.load_torque, drive.load_stiffness, unit[U_HINGE_MOMENT])
     out = MonitorOutputs(np.empty(n), np.empty(n), np.empty(n), np.empty(n))
     simulate_monitor(own_drive, unit_plant(plant, unit), candidate, options, out)
+    return out
+
+
+@njit(cache=True)
+def _candidate_fitness(row, unit, drive, plant, options, target, norms):
+    """One candidate of :func:`evaluate_population`: run the Monitor, weigh its error."""
+    n = drive.command.size
+    out = _simulate_candidate(row, unit, drive, plant, options)
     total = 0.0
     filtered = np.empty(n)
     signals = (out.current, out.position, out.speed)
@@ -400,3 +408,42 @@ def _candidate_fitness(row, unit, drive, plant, options, target, norms):
             acc += target.sample_weight[k] * (model - measured[k]) ** 2
         total += target.weights[s] * acc / norms[s]
     return total
+
+
+@njit(cache=True)
+def evaluate_residuals(faults, units, drive, plant, options, target, residuals):
+    """The weighted residual of every candidate in one call (parallel over candidates).
+
+    ``residuals`` : (m, 3, n_rec) float64, output:
+    ``sqrt(w_s sample_weight_k / ||target_s||^2) (lp(MM_s)_k - target_s,k)``; its squared
+    sum over (s, k) is the candidate's fitness of :func:`evaluate_population` (a
+    zero-weight signal's rows are 0). For least-squares polishing and Jacobians.
+    """
+    _residuals_parallel(faults, units, drive, plant.electrical, plant.mechanical,
+                        plant.controller, plant.sensors, options, target, _target_norms(target),
+                        residuals)
+
+
+@njit(cache=True, parallel=True)
+def _residuals_parallel(faults, units, drive, electrical, mechanical, controller, sensors, options,
+                        target, norms, residuals):
+    shared = units.shape[0] == 1
+    n = drive.command.size
+    for j in prange(faults.shape[0]):
+        out = _simulate_candidate(faults[j], units[0] if shared else units[j], drive,
+                                  Plant(electrical, mechanical, controller, sensors), options)
+        filtered = np.empty(n)
+        signals = (out.current, out.position, out.speed)
+        targets = (target.current, target.position, target.speed)
+        for s in range(3):
+            if target.weights[s] == 0.0:
+                residuals[j, s, :] = 0.0
+                continue
+            moving_average(signals[s], target.filter_width, filtered)
+            measured = targets[s]
+            scale = target.weights[s] / norms[s]
+            for k in range(measured.size):
+                i = target.sample_index[k]
+                f = target.sample_fraction[k]
+                model = filtered[i] if f == 0.0 else filtered[i] + f * (filtered[i + 1] - filtered[i])
+                residuals[j, s, k] = math.sqrt(scale * target.sample_weight[k]) * (model - measured[k])
