@@ -28,16 +28,20 @@ def main(out: Path = ROOT / "docs") -> list[dict]:
         results.append({"case": name, **report.data})
     lines = ["# Identification on the shipped configs (twin experiments)", "",
              "Reference Model traces with sensor noise, identified with the default settings",
-             "(population 64, 40 generations, Powell refinement, nominal-discrepancy correction).",
+             "(population 64, 40 generations, least-squares polish, nominal-discrepancy",
+             "correction), with each estimate's 90 % interval.",
              "Regenerate with `python benchmarks/validation.py`.", ""]
     for r in results:
         lines += [f"## {r['case']}", "",
                   f"health: {', '.join(f'{k} {v}' for k, v in r['health'].items())}; "
                   f"{r['evaluations']} Monitor runs, {r['elapsed_s']:.1f} s", "",
-                  "| quantity | truth | estimate | error |", "|---|---|---|---|"]
+                  "| quantity | truth | estimate | 90 % interval | error |", "|---|---|---|---|---|"]
         for label, keys, unit, fmt in ROWS:
+            interval = _pick(r["interval"], keys)
+            shown = "—" if interval is None else f"[{fmt.format(interval[0])}, {fmt.format(interval[1])}]"
             lines.append(f"| {label} [{unit}] | {_fmt(_pick(r['truth'], keys), fmt)} | "
-                         f"{_fmt(_pick(r['estimate'], keys), fmt)} | {_fmt(_pick(r['error'], keys), fmt)} |")
+                         f"{_fmt(_pick(r['estimate'], keys), fmt)} | {shown} | "
+                         f"{_fmt(_pick(r['error'], keys), fmt)} |")
         lines += ["", f"![fit](validation/{r['case']}/fit.png)", ""]
     (out / "validation.md").write_text("\n".join(lines))
     return results
