@@ -6,7 +6,7 @@ searches the same genes, bounds and batched Monitor evaluator
 (:class:`emaprog.identification.objective.Objective`, nominal correction
 applied), with the same global budget (the default GA's Monitor runs on that case),
 and hands its best to the same local polish
-(:func:`emaprog.identification.run.polish`):
+(:func:`emaprog.identification.run.polish`, the default least-squares one):
 
 * ``ga`` -- emaprog's GA (DEAP individuals, hall of fame and logbook; its own
   numpy operators: tournament, BLX-alpha crossover, decaying Gaussian mutation);
@@ -162,7 +162,8 @@ def run_cases(count: int) -> list[dict]:
             else:
                 found = OPTIMISERS[name](objective, budget, spec.settings.ga.seed)
             global_runs = objective.evaluations
-            genes, fitness, _ = polish(objective, found, float(objective(found[None])[0]))
+            genes, fitness, _ = polish(objective, found, float(objective(found[None])[0]),
+                                       spec.settings.polish)
             estimate = objective.values(genes)
             errors = verdicts.errors(estimate, truth)
             rows.append({"optimiser": name, "case": spec.case_id, "fitness": fitness,

@@ -385,18 +385,26 @@ def test_unit_spread_and_hinge_moment_draws_keep_old_campaigns_and_stay_in_range
 
 
 @pytest.mark.slow
-def test_a_spread_unit_is_commissioned_and_identified_inside_its_case(tmp_path):
-    """One robustness case end to end (spread unit, unknown hinge moment, commissioning from
-    its own healthy recording, nuisances): the case row carries the commissioning errors,
-    the estimated hinge moment within 5 N m, and friction within SPEC 10's 5 %."""
+def test_a_small_robustness_campaign_commissions_each_unit_and_stays_within_spec(tmp_path):
+    """The first 4 cases of campaigns/robustness.yaml end to end (spread units, unknown
+    hinge moments, each commissioned from its own healthy recording, nuisances): two faulty
+    units identified within SPEC 10 on every quantity, two healthy ones all nominal; each
+    row carries its commissioning errors (k_e within 8 %: measured 0.6-5.6 % here, p95 5.9 %
+    over the 50-case campaign), the estimated hinge moment within 5 N m (measured 0.4-1.3)
+    and the intervals."""
     data = yaml.safe_load((ROOT / "campaigns" / "robustness.yaml").read_text())
-    data.update(cases=1, seed=11, scenario=str(ROOT / "configs" / "chirp-nominal.yaml"),
-                faults={**data["faults"], "healthy_fraction": 0.0})
-    path = tmp_path / "one.yaml"
+    data.update(cases=4, scenario=str(ROOT / "configs" / "chirp-nominal.yaml"))
+    path = tmp_path / "small.yaml"
     path.write_text(yaml.safe_dump(data))
-    outcome = api.sweep(path, tmp_path / "out", workers=1)
-    row = outcome.cases.iloc[0]
-    assert abs(row["est_hinge_moment"] - row["true_hinge_moment"]) < 5.0
-    assert abs(row["commission_err_back_emf_constant"]) < 0.03
-    assert abs(row["err_friction"] / row["true_friction"]) < 0.05
-    assert outcome.summary["commissioning"]["back_emf_constant"]["n"] == 1
+    outcome = api.sweep(path, tmp_path / "out", workers=2)
+    summary = outcome.summary
+    for quantity, stats in summary["errors"].items():
+        if stats["within_tolerance"] is not None:
+            assert stats["within_tolerance"] == 1.0, (quantity, stats)
+    assert summary["false_alarms"]["healthy_cases"] == 2
+    assert summary["false_alarms"]["flagged"] == 0
+    cases = outcome.cases
+    assert (abs(cases["est_hinge_moment"] - cases["true_hinge_moment"]) < 5.0).all()
+    assert (abs(cases["commission_err_back_emf_constant"]) < 0.08).all()
+    assert summary["commissioning"]["back_emf_constant"]["n"] == 4
+    assert cases["low_friction"].notna().all() and (cases["low_friction"] <= cases["est_friction"]).all()

@@ -166,7 +166,7 @@ POLISHERS = {"powell": _powell, "least_squares": _least_squares}
 
 
 def polish(objective: Objective, start: np.ndarray, fitness: float,
-           method: str = "powell") -> tuple[np.ndarray, float, bool]:
+           method: str = "least_squares") -> tuple[np.ndarray, float, bool]:
     """The local search after a global one, in :class:`PolishCoordinates`: ``powell``
     (bounded Powell, one Monitor run at a time) or ``least_squares`` (trust-region
     least squares on the residual vector, the Jacobian in one batch per step); from
