@@ -108,7 +108,8 @@ class Report:
     estimate: dict[str, Any]  # SPEC 5 shape: {"friction": x, "short_circuit": {"a": x, ..}, ..}
     truth: dict[str, Any] | None  # same shape, for a simulated trace
     error: dict[str, Any] | None
-    health: dict[str, str]  # fault -> nominal | incipient | degraded
+    health: dict[str, str]  # fault -> nominal | incipient | degraded | inconclusive
+    interval: dict[str, Any]  # estimate's shape, each estimated quantity [low, high] (90 %)
     fitness: float
     evaluations: int
     elapsed_s: float
@@ -120,8 +121,8 @@ class Report:
 
     @classmethod
     def from_data(cls, data: dict[str, Any], folder: Path | None = None) -> "Report":
-        keys = ("estimate", "truth", "error", "health", "fitness", "evaluations", "elapsed_s",
-                "seed", "settings", "emaprog_version")
+        keys = ("estimate", "truth", "error", "health", "interval", "fitness", "evaluations",
+                "elapsed_s", "seed", "settings", "emaprog_version")
         return cls(**{k: data[k] for k in keys}, data=data, folder=folder)
 
 
