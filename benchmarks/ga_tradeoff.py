@@ -11,8 +11,6 @@ is one JSON list.
 
 from __future__ import annotations
 
-import argparse
-import json
 import sys
 import tempfile
 from pathlib import Path
@@ -20,6 +18,8 @@ from pathlib import Path
 import yaml
 
 from emaprog import api
+
+from _output import finish, parser  # the sibling module benchmarks/_output.py
 
 ROOT = Path(__file__).resolve().parent.parent
 CAMPAIGN = ROOT / "campaigns" / "regression.yaml"
@@ -61,14 +61,8 @@ def table(rows: list[dict]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--json", action="store_true", help="print one JSON list as the last line")
-    args = parser.parse_args(argv)
-    rows = [run(p, g) for p, g in SETTINGS]
-    print(table(rows))
-    if args.json:
-        print(json.dumps(rows))
-    return 0
+    args = parser(__doc__).parse_args(argv)
+    return finish([run(p, g) for p, g in SETTINGS], table, args.json)
 
 
 if __name__ == "__main__":

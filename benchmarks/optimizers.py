@@ -28,8 +28,6 @@ last line with ``--json`` is one JSON list.
 
 from __future__ import annotations
 
-import argparse
-import json
 import math
 import random
 import sys
@@ -50,6 +48,8 @@ from emaprog.identification.objective import Objective, reference_correction
 from emaprog.identification.run import polish
 from emaprog.models import reference
 from emaprog.models.common import inputs
+
+from _output import finish, parser  # the sibling module benchmarks/_output.py
 
 ROOT = Path(__file__).resolve().parent.parent
 CAMPAIGN = ROOT / "campaigns" / "regression.yaml"
@@ -217,15 +217,10 @@ def table(summary: list[dict]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--json", action="store_true", help="print one JSON list as the last line")
-    parser.add_argument("--cases", type=int, default=10, help="regression cases to run")
-    args = parser.parse_args(argv)
-    summary = summarise(run_cases(args.cases))
-    print(table(summary))
-    if args.json:
-        print(json.dumps(summary))
-    return 0
+    arguments = parser(__doc__)
+    arguments.add_argument("--cases", type=int, default=10, help="regression cases to run")
+    args = arguments.parse_args(argv)
+    return finish(summarise(run_cases(args.cases)), table, args.json)
 
 
 if __name__ == "__main__":

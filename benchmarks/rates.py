@@ -13,13 +13,13 @@ Run: ``python benchmarks/rates.py [--json]`` (2 processes, about 5 minutes on 2 
 
 from __future__ import annotations
 
-import argparse
-import json
 import sys
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+
+from _output import finish, parser  # the sibling module benchmarks/_output.py
 
 ROOT = Path(__file__).resolve().parent.parent
 CAMPAIGN = ROOT / "campaigns" / "regression.yaml"
@@ -108,18 +108,12 @@ def table(summary: list[dict]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--json", action="store_true", help="print one JSON list as the last line")
-    args = parser.parse_args(argv)
+    args = parser(__doc__).parse_args(argv)
     import multiprocessing
 
     with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("spawn")) as pool:
         rows = [row for case in pool.map(run_case, range(10)) for row in case]
-    summary = summarize(rows)
-    print(table(summary))
-    if args.json:
-        print(json.dumps(summary))
-    return 0
+    return finish(summarize(rows), table, args.json)
 
 
 if __name__ == "__main__":

@@ -6,7 +6,7 @@ import time
 from typing import NamedTuple
 
 import numpy as np
-from scipy.optimize import minimize as local_minimize
+from scipy.optimize import least_squares, minimize as local_minimize
 
 from .. import progress
 from ..errors import InputError
@@ -23,7 +23,12 @@ from .objective import (
     reference_correction,
 )
 
-REFINE_EVALUATIONS = 400  # budget of the local search (Powell) after the GA
+REFINE_EVALUATIONS = 400  # budget of the Powell polish after the GA [Monitor runs]
+#: Steps of the least-squares polish (each one Monitor run and, for its Jacobian, a batch of
+#: one run per gene).
+REFINE_STEPS = 30
+#: Finite-difference step of the least-squares polish's Jacobian [polish coordinates, of 1].
+JACOBIAN_STEP = 1e-3
 
 
 class Identification(NamedTuple):
@@ -118,8 +123,6 @@ def single_phase_starts(objective: Objective, genes: np.ndarray) -> list[np.ndar
     return [candidates[int(np.argmin(fitness))]]
 
 
-#: Finite-difference step of the least-squares polish's Jacobian [polish coordinates, of 1].
-JACOBIAN_STEP = 1e-3
 def _powell(objective: Objective, plane: PolishCoordinates,
             origin: np.ndarray) -> tuple[np.ndarray, float]:
     found = local_minimize(lambda u: float(objective(plane.genes(u)[None])[0]),
@@ -131,8 +134,6 @@ def _powell(objective: Objective, plane: PolishCoordinates,
 def _least_squares(objective: Objective, plane: PolishCoordinates,
                    origin: np.ndarray) -> tuple[np.ndarray, float]:
     """Trust-region least squares on the residual vector, its Jacobian one batch per step."""
-    from scipy.optimize import least_squares
-
     lower = np.array([b[0] for b in plane.bounds])
     upper = np.array([b[1] for b in plane.bounds])
     plant = fine_plant(objective.params.plant)
@@ -159,9 +160,6 @@ def _least_squares(objective: Objective, plane: PolishCoordinates,
     return genes, float(objective(genes[None])[0])  # with the real ADC
 
 
-#: Steps of the least-squares polish (each one Monitor run and, for its Jacobian, a batch of
-#: one run per gene).
-REFINE_STEPS = 30
 POLISHERS = {"powell": _powell, "least_squares": _least_squares}
 
 
