@@ -17,7 +17,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from emaprog import parameters  # noqa: E402
+from emaprog.config import parameters  # noqa: E402
 from emaprog.faults import (  # noqa: E402
     HEALTHY, flatten, monitor_form, reference_form, values_of,
 )

@@ -10,13 +10,13 @@ and hands its best to the same local polish
 
 * ``ga`` -- emaprog's GA (DEAP individuals, hall of fame and logbook; its own
   numpy operators: tournament, BLX-alpha crossover, decaying Gaussian mutation);
-* ``deap-toolbox`` -- DEAP's own operators and (mu + lambda) loop:
-  ``selTournament``, ``cxSimulatedBinaryBounded``, ``mutPolynomialBounded``,
-  ``varOr``, seeded through :mod:`random` per identification, each generation
-  evaluated in one batch;
+* ``deap-toolbox`` -- emaprog's GA with ``strategy: deap``: DEAP's own operators
+  and (mu + lambda) loop (``selTournament``, ``cxSimulatedBinaryBounded``,
+  ``mutPolynomialBounded``, ``varOr``), seeded through :mod:`random` per
+  identification, each generation evaluated in one batch;
 * ``de`` -- :func:`scipy.optimize.differential_evolution`, vectorised, Latin
   hypercube start, no built-in polish;
-* ``cma-es`` -- DEAP's ``cma.Strategy`` (population 64), out-of-box genes
+* ``cma-es`` -- DEAP's ``cma.Strategy`` (lambda: the GA's population), out-of-box genes
   evaluated clipped with a quadratic penalty;
 * ``multistart`` -- bounded Powell from 6 Latin-hypercube starts sharing the budget.
 
@@ -29,18 +29,16 @@ last line with ``--json`` is one JSON list.
 from __future__ import annotations
 
 import math
-import random
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
-from deap import base, cma, creator, tools
-from deap.algorithms import varOr
+from deap import cma, creator
 from scipy.optimize import differential_evolution, minimize as local_minimize
 
 from emaprog.campaign.cases import case_specs, load_parameters, with_hinge
-from emaprog.config.scenario import load_campaign
+from emaprog.config.scenario import IdentifySettings, load_campaign
 from emaprog.faults import FAULTS, QUANTITIES, flatten
 from emaprog.identification import result as verdicts
 from emaprog.identification.ga import GAOptions, minimize as ga_minimize
@@ -53,40 +51,16 @@ from _output import finish, parser  # the sibling module benchmarks/_output.py
 
 ROOT = Path(__file__).resolve().parent.parent
 CAMPAIGN = ROOT / "campaigns" / "regression.yaml"
-POPULATION = 64
+POPULATION = IdentifySettings().ga.population  # DE and CMA-ES generations of the GA's size
 STARTS = 6
 
 
 def _deap_toolbox(objective: Objective, budget: int, seed: int) -> np.ndarray:
-    random.seed(seed)
-    dims = objective.dims
-    toolbox = base.Toolbox()
-    toolbox.register("mate", tools.cxSimulatedBinaryBounded, eta=15.0, low=0.0, up=1.0)
-    toolbox.register("mutate", tools.mutPolynomialBounded, eta=20.0, low=0.0, up=1.0,
-                     indpb=1.0 / dims)
-    toolbox.register("select", tools.selTournament, tournsize=3)
-
-    def evaluate(individuals) -> None:
-        fresh = [ind for ind in individuals if not ind.fitness.valid]
-        if fresh:
-            values = objective(np.array(fresh, float))
-            for ind, value in zip(fresh, values):
-                ind.fitness.values = (float(value),)
-
-    population = [creator.FaultCandidate(random.random() for _ in range(dims))
-                  for _ in range(POPULATION - 1)]
-    population.append(creator.FaultCandidate(objective.healthy_genes().tolist()))
-    evaluate(population)
-    hall = tools.HallOfFame(1)
-    hall.update(population)
-    spent = POPULATION
-    while spent + POPULATION <= budget:
-        offspring = varOr(population, toolbox, POPULATION, cxpb=0.7, mutpb=0.2)
-        evaluate(offspring)
-        spent += POPULATION
-        hall.update(offspring)
-        population = toolbox.select(population + offspring, POPULATION)
-    return np.array(hall[0], float)
+    """emaprog's ``deap`` GA strategy with as many generations as the budget pays for."""
+    options = GAOptions(population=POPULATION, generations=max(1, budget // POPULATION - 1),
+                        strategy="deap")
+    return ga_minimize(objective, objective.dims, options, seed=seed,
+                       initial=objective.healthy_genes()[None]).best
 
 
 def _de(objective: Objective, budget: int, seed: int) -> np.ndarray:

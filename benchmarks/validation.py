@@ -28,7 +28,7 @@ def main(out: Path = ROOT / "docs") -> list[dict]:
         results.append({"case": name, **report.data})
     lines = ["# Identification on the shipped configs (twin experiments)", "",
              "Reference Model traces with sensor noise, identified with the default settings",
-             "(population 64, 40 generations, least-squares polish, nominal-discrepancy",
+             "(population 32, 20 generations, least-squares polish, nominal-discrepancy",
              "correction), with each estimate's 90 % interval.",
              "Regenerate with `python benchmarks/validation.py`.", ""]
     for r in results:

@@ -14,7 +14,7 @@ from emaprog.cli import app
 from emaprog.config import parameters
 from emaprog.config.scenario import Scenario, load_scenario
 from emaprog.identification.confidence import (
-    correlation_length, covariance, information_inverse, noise_sigma,
+    correlation_length, covariance, information_inverse, is_twin, noise_sigma, quantity_factor,
 )
 from emaprog.identification.objective import (
     Correction, ResidualRecording, recording_correction,
@@ -74,6 +74,22 @@ def _trace(command: np.ndarray, rate: float = 1e4) -> Trace:
     time = np.arange(n) / rate
     return Trace({"time": time, "command": command, "position": command, "speed": np.zeros(n),
                   "current": np.zeros(n)}, {})
+
+
+def test_twin_factors_only_for_the_reference_run_with_the_very_same_values(params):
+    """A Reference trace identified with the set that made it is a twin experiment; the
+    same trace against a unit 5 % off in inertia, or a rig recording's metadata, is not,
+    and gets the (wider, for friction) unit factors."""
+    sc = Scenario.model_validate({**load_scenario(CONFIGS / "chirp-nominal.yaml").model_dump(),
+                                  "duration": 0.05})
+    trace = reference.simulate(sc, params)
+    assert is_twin(trace, params)
+    other = parameters.scaled(params, {"motor_inertia": 1.05}, "a unit off the set")
+    assert not is_twin(trace, other)
+    rig = Trace(trace.columns, {**trace.metadata, "model": "recording"})
+    assert not is_twin(rig, params) and not is_twin(Trace(trace.columns, None), params)
+    assert quantity_factor("friction", twin=True) < quantity_factor("friction", twin=False)
+    assert quantity_factor("hinge_moment") == 1.0  # a nuisance: not calibrated
 
 
 def test_recording_correction_needs_the_same_command_on_the_same_grid():

@@ -1,6 +1,12 @@
-"""The GA wrapper on functions with known minima, under bounds; reproducibility."""
+"""The GA wrapper on functions with known minima, under bounds; reproducibility.
+
+Both strategies (our numpy operators, DEAP's toolbox and loop) answer the same
+checks, with the same budgets.
+"""
 
 from __future__ import annotations
+
+import random
 
 import numpy as np
 import pytest
@@ -14,21 +20,27 @@ def sphere(target):
     return f
 
 
-def test_finds_an_interior_minimum():
+STRATEGIES = pytest.mark.parametrize("strategy", ["numpy", "deap"])
+
+
+@STRATEGIES
+def test_finds_an_interior_minimum(strategy):
     target = np.array([0.3, 0.7, 0.55, 0.1])
-    result = minimize(sphere(target), 4, GAOptions(population=48, generations=60), seed=3)
+    result = minimize(sphere(target), 4, GAOptions(population=48, generations=60,
+                                                   strategy=strategy), seed=3)
     assert np.max(np.abs(result.best - target)) < 0.02
     assert result.fitness < 1e-3
 
 
-def test_minimum_on_the_bound_is_reached_and_never_left():
+@STRATEGIES
+def test_minimum_on_the_bound_is_reached_and_never_left(strategy):
     seen = []
 
     def f(genes):
         seen.append(genes.copy())
         return np.sum((genes - np.array([-0.5, 1.5])) ** 2, axis=1)  # optimum outside the box
 
-    result = minimize(f, 2, GAOptions(population=32, generations=40), seed=1)
+    result = minimize(f, 2, GAOptions(population=32, generations=40, strategy=strategy), seed=1)
     everything = np.vstack(seen)
     assert everything.min() >= 0.0 and everything.max() <= 1.0
     assert np.allclose(result.best, [0.0, 1.0], atol=0.01)
@@ -44,23 +56,45 @@ def test_circular_gene_wraps_across_zero():
     assert abs((result.best[0] - 0.98 + 0.5) % 1.0 - 0.5) < 0.01
 
 
-def test_rastrigin_global_minimum():
+@STRATEGIES
+def test_rastrigin_global_minimum(strategy):
     """Multimodal: the global minimum at the box centre among 100 local ones."""
     def f(genes):
         x = 10.24 * genes - 5.12
         return 10 * x.shape[1] + np.sum(x ** 2 - 10 * np.cos(2 * np.pi * x), axis=1)
 
-    result = minimize(f, 2, GAOptions(population=80, generations=80, patience=40), seed=2)
+    result = minimize(f, 2, GAOptions(population=80, generations=80, patience=40,
+                                      strategy=strategy), seed=2)
     assert result.fitness < 0.1
 
 
-def test_same_seed_same_result_and_logbook():
+@STRATEGIES
+def test_same_seed_same_result_and_logbook(strategy):
     target = np.array([0.2, 0.4, 0.6])
-    a = minimize(sphere(target), 3, GAOptions(population=16, generations=10), seed=7)
-    b = minimize(sphere(target), 3, GAOptions(population=16, generations=10), seed=7)
-    c = minimize(sphere(target), 3, GAOptions(population=16, generations=10), seed=8)
+    options = GAOptions(population=16, generations=10, strategy=strategy)
+    a = minimize(sphere(target), 3, options, seed=7)
+    random.seed(12345)  # whatever the global random state, the run depends on its seed only
+    b = minimize(sphere(target), 3, options, seed=7)
+    c = minimize(sphere(target), 3, options, seed=8)
     assert np.array_equal(a.best, b.best) and list(a.logbook) == list(b.logbook)
     assert not np.array_equal(a.best, c.best)
+
+
+def test_deap_strategy_leaves_the_global_random_state_and_counts_its_runs():
+    """DEAP's operators draw from the random module: seeded for the run, restored after;
+    the evaluations are the first population plus each generation's new individuals."""
+    calls = []
+
+    def f(genes):
+        calls.append(len(genes))
+        return np.sum((genes - 0.5) ** 2, axis=1)
+
+    random.seed(99)
+    before = random.getstate()
+    result = minimize(f, 3, GAOptions(population=16, generations=10, strategy="deap"), seed=4)
+    assert random.getstate() == before
+    assert result.evaluations == sum(calls) and len(calls) == 11  # one batch per generation
+    assert sum(r["nevals"] for r in result.logbook) == result.evaluations
 
 
 def test_stagnation_stops_early_and_logbook_is_monotone():

@@ -211,14 +211,17 @@ def test_pair_eccentricity_law_is_the_reference_law_on_the_active_pair():
     import math
 
     from emaprog.kernels.bldc import NEGATIVE_PHASE, POSITIVE_PHASE, phase_coefficient, sector
-    from emaprog.kernels.monitor import eccentricity_shape, pair_eccentricity_coefficients
+    from emaprog.kernels.monitor import (
+        eccentricity_offsets, eccentricity_shape, pair_eccentricity_coefficients,
+    )
 
     k, z, phi = 0.15, 0.12, 0.7
     for working in (np.ones(3), np.array([0.65, 1.0, 0.9])):
         for theta_e in np.linspace(0.0, 2 * math.pi, 37):
             s6 = sector(theta_e)
             p, q = POSITIVE_PHASE[s6], NEGATIVE_PHASE[s6]
-            gain = pair_eccentricity_coefficients(theta_e, s6, z, phi, working, k, np.empty(3))
+            gain = pair_eccentricity_coefficients(theta_e, s6, z, eccentricity_offsets(phi),
+                                                  working, k, np.empty(3))
             reference = (phase_coefficient(theta_e, working[p], 2 * z, phi, p, k)
                          + phase_coefficient(theta_e, working[q], 2 * z, phi, q, k))
             assert gain == pytest.approx(reference, rel=1e-12)

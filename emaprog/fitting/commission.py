@@ -46,6 +46,7 @@ from ..kernels.monitor import simulate_monitor
 from ..kernels.structs import MonitorOutputs, Plant
 from ..models import monitor
 from ..models.common import Inputs, Instants, inputs_from_trace, recorded_instants
+from ..numerics import serial_blas
 
 
 class Unknown(NamedTuple):
@@ -214,9 +215,10 @@ def _free_bounds(free: list[str], count: int, params: Parameters) -> tuple[np.nd
 def _solve(recordings, params, free, x0):
     problem = _Problem(recordings, params, free)
     lower, upper = _free_bounds(free, len(recordings), params)
-    result = least_squares(problem, np.clip(x0, lower, upper), bounds=(lower, upper),
-                           method="trf", diff_step=DIFF_STEP, x_scale=1.0, xtol=1e-8, ftol=1e-10,
-                           max_nfev=200)
+    with serial_blas():
+        result = least_squares(problem, np.clip(x0, lower, upper), bounds=(lower, upper),
+                               method="trf", diff_step=DIFF_STEP, x_scale=1.0, xtol=1e-8,
+                               ftol=1e-10, max_nfev=200)
     jac = result.jac
     dof = max(result.fun.size - jac.shape[1], 1)
     s2 = float(result.fun @ result.fun) / dof

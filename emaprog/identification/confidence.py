@@ -80,6 +80,7 @@ class Confidence(NamedTuple):
     inconclusive: dict[str, str]  # fault -> why (only the inconclusive ones)
     isolation: dict | None  # short-circuit phase confidence, when a short is named
     method: str
+    twin: bool  # the twin experiment's model-error factors were used (:func:`is_twin`)
 
 
 def noise_sigma(x: np.ndarray, lsb: float) -> float:
@@ -209,13 +210,28 @@ def _coordinates(objective: Objective, values: dict[str, float]) -> tuple[list[_
     return coords, point
 
 
-def _factor(coordinate: str) -> float:
-    """The model-error factor of a coordinate's fault (1 for a nuisance: not calibrated)."""
+def quantity_factor(name: str, twin: bool = False) -> float:
+    """The model-error factor of a fault quantity: :attr:`~emaprog.faults.Fault.model_error_factor`
+    for a unit's own set, :attr:`~emaprog.faults.Fault.twin_error_factor` in a twin experiment;
+    1 for anything else (a nuisance: not calibrated)."""
     for fault in CATALOGUE:
-        plane = (PLANE.x, PLANE.y) if PLANE and fault.name == PLANE.fault else ()
-        if coordinate in {q.name for q in fault.quantities} or coordinate in plane:
-            return fault.model_error_factor
+        factors = fault.twin_error_factor if twin else fault.model_error_factor
+        for q, factor in zip(fault.quantities, factors):
+            if q.name == name:
+                return factor
     return 1.0
+
+
+def is_twin(trace, params) -> bool:
+    """Whether ``trace`` is emaprog's Reference Model run with exactly the physical values of
+    ``params`` (a twin experiment: the trace's provenance says so). A rig recording, or a
+    trace of another unit, never is."""
+    meta = getattr(trace, "metadata", None) or {}
+    recorded = meta.get("parameters") or {}
+    values = params.values()
+    return meta.get("model") == "reference" and all(
+        recorded.get(section) == values[section]
+        for section in ("electrical", "mechanical", "controller", "sensors"))
 
 
 def _values(base: dict[str, float], point: dict[str, float]) -> dict[str, float]:
@@ -279,12 +295,14 @@ def _clip(q_name: str, low: float, high: float) -> tuple[float, float]:
 
 
 def assess(objective: Objective, trace, values: dict[str, float], fitness: float,
-           estimated: list[str], health_limits) -> Confidence:
+           estimated: list[str], health_limits, twin: bool = False) -> Confidence:
     """Noise floor, intervals, identifiability and isolation of one identification."""
     floor = noise_floor(objective, trace, fitness)
     residual, blocks = residual_vector(objective, values)
     coords, jac = jacobian(objective, values)
-    factor = np.array([_factor(c.name) for c in coords])
+    # the plane's coordinates stay unscaled: its radial and tangential errors get the
+    # magnitude's and the angle's own factors below
+    factor = np.array([quantity_factor(c.name, twin) for c in coords])
     cov = covariance(jac, residual, blocks) * np.outer(factor, factor)
     sigma = {c.name: math.sqrt(cov[k, k]) if np.isfinite(cov[k, k]) else math.inf
              for k, c in enumerate(coords)}
@@ -306,8 +324,10 @@ def assess(objective: Objective, trace, values: dict[str, float], fitness: float
         radial = np.array([math.cos(phase), math.sin(phase)])
         tangent = np.array([-math.sin(phase), math.cos(phase)])
         if np.all(np.isfinite(block)):
-            s_r = math.sqrt(max(float(radial @ block @ radial), 0.0))
-            s_t = math.sqrt(max(float(tangent @ block @ tangent), 0.0))
+            s_r = quantity_factor(PLANE.magnitude, twin) * math.sqrt(
+                max(float(radial @ block @ radial), 0.0))
+            s_t = quantity_factor(PLANE.angle, twin) * math.sqrt(
+                max(float(tangent @ block @ tangent), 0.0))
         else:
             s_r = s_t = math.inf
         standard_error[PLANE.magnitude] = s_r
@@ -333,12 +353,15 @@ def assess(objective: Objective, trace, values: dict[str, float], fitness: float
     isolation = _isolation(objective, values, fitness, residual.size,
                            correlation_length(residual, blocks)) \
         if PHASE_FAULT in estimated else None
+    basis = ("twin experiment (the trace is the Reference Model with this very set)" if twin
+             else "a unit's own parameter set")
     method = ("linearised (sandwich) covariance of the weighted least-squares fit at the "
               "estimate, correlated residuals counted by their correlation length, times each "
-              "fault's model-error factor ("
-              + ", ".join(f"{f.name} {f.model_error_factor:g}" for f in CATALOGUE)
-              + "; calibrated on the quick and robustness campaigns)")
-    return Confidence(floor, interval, standard_error, inconclusive, isolation, method)
+              f"quantity's model-error factor for {basis} ("
+              + ", ".join(f"{q.name} {quantity_factor(q.name, twin):g}"
+                          for f in CATALOGUE for q in f.quantities)
+              + "; calibrated on separate calibration campaigns to 90 % coverage)")
+    return Confidence(floor, interval, standard_error, inconclusive, isolation, method, twin)
 
 
 def _isolation(objective: Objective, values: dict[str, float], fitness: float, samples: int,
@@ -367,6 +390,7 @@ def confidence_record(confidence: Confidence) -> dict:
     floor = confidence.floor
     return {
         "method": confidence.method,
+        "model_error_basis": "twin" if confidence.twin else "unit",
         "noise_floor": {"sigma": floor.sigma, "fitness": floor.fitness, "ratio": floor.ratio,
                         "explained": floor.explained,
                         "rule": f"explained when fitness <= {MAX_FLOOR_RATIO:g} x the floor"},

@@ -1,10 +1,21 @@
 """A bounded real-coded genetic algorithm on DEAP, evaluated one generation per call.
 
-Genes live in the unit box [0, 1]^d; a gene flagged *circular* (an angle)
-wraps around instead of stopping at its bounds. Every random draw comes from
-one ``numpy.random.Generator`` seeded by the caller (DEAP's own operators draw
-from the global :mod:`random` module, so the operators here are our own and
-DEAP supplies the individuals, hall of fame, statistics and logbook).
+Genes live in the unit box [0, 1]^d. Two strategies (``GAOptions.strategy``):
+
+* ``numpy``: a generational GA with elitism whose operators are written here
+  (tournament, BLX-alpha crossover, decaying Gaussian mutation; a gene flagged
+  *circular*, an angle, wraps around instead of stopping at its bounds); every
+  draw comes from one ``numpy.random.Generator`` seeded by the caller, and DEAP
+  supplies the individuals, hall of fame, statistics and logbook;
+* ``deap``: DEAP's own toolbox and loop, ``algorithms.eaMuPlusLambda`` with
+  ``selTournament``, ``cxSimulatedBinaryBounded`` and ``mutPolynomialBounded``;
+  DEAP's operators draw from the global :mod:`random` module, which is seeded
+  from the caller's seed for the run and restored afterwards, and the
+  toolbox's ``map`` hands each generation's new individuals to the batched
+  evaluator in one call.
+
+Both start from the same Latin hypercube and spend ``population x (generations
++ 1)`` evaluations at most.
 """
 
 from __future__ import annotations
@@ -13,7 +24,9 @@ from collections.abc import Callable, Sequence
 from typing import NamedTuple
 
 import numpy as np
-from deap import base, creator, tools
+import random
+
+from deap import algorithms, base, creator, tools
 
 # DEAP's creator registers classes module-wide: create them once, at import.
 if not hasattr(creator, "FaultFitness"):
@@ -26,8 +39,8 @@ BatchFitness = Callable[[np.ndarray], np.ndarray]
 
 
 class GAOptions(NamedTuple):
-    population: int = 64
-    generations: int = 40
+    population: int = 32
+    generations: int = 20
     crossover: float = 0.7  # [-] probability that a pair is recombined
     mutation: float = 0.2  # [-] probability that an individual is mutated
     tournament: int = 3
@@ -37,6 +50,9 @@ class GAOptions(NamedTuple):
     sigma_end: float = 0.02  # [-] ... last generation (geometric decay)
     patience: int = 12  # generations without relative improvement > tolerance -> stop
     tolerance: float = 1e-4
+    strategy: str = "numpy"  # "numpy" (operators above) | "deap" (DEAP's toolbox and loop)
+    sbx_eta: float = 15.0  # deap: crowding degree of the simulated binary crossover
+    polynomial_eta: float = 20.0  # deap: crowding degree of the polynomial mutation
 
 
 class GAResult(NamedTuple):
@@ -87,30 +103,108 @@ def minimize(fitness_of: BatchFitness, dims: int, options: GAOptions = GAOptions
              seed: int = 0, circular: Sequence[bool] | None = None,
              initial: np.ndarray | None = None,
              on_generation: Callable[[int, float], None] | None = None) -> GAResult:
-    """Minimise ``fitness_of`` over [0, 1]^dims with a generational GA.
+    """Minimise ``fitness_of`` over [0, 1]^dims with the strategy ``options.strategy``.
 
     The first population is a Latin hypercube (every gene's range covered
-    evenly), optionally with ``initial`` rows (e.g. the healthy point) in
-    front. Elitism keeps the ``elite`` best; a DEAP hall of fame keeps the
-    best ever. Stops after ``options.generations`` or when the best fitness
-    has not improved by ``tolerance`` (relative) for ``patience`` generations.
+    evenly), optionally with ``initial`` rows (e.g. the healthy point) in front.
+    ``on_generation(gen, best)`` is called after every generation.
     """
-    rng = np.random.default_rng(np.random.SeedSequence(seed))
-    circ = np.zeros(dims, bool) if circular is None else np.asarray(circular, bool)
-    m = options.population
-    strata = (np.argsort(rng.random((m, dims)), axis=0) + rng.random((m, dims))) / m
-    population = strata
+    if options.strategy == "deap":
+        return _deap_ga(fitness_of, dims, options, seed, initial, on_generation)
+    if options.strategy != "numpy":
+        raise ValueError(f"unknown GA strategy {options.strategy!r}")
+    return _numpy_ga(fitness_of, dims, options, seed, circular, initial, on_generation)
+
+
+def _first_population(rng: np.random.Generator, m: int, dims: int,
+                      initial: np.ndarray | None) -> np.ndarray:
+    """A Latin hypercube of ``m`` rows, ``initial`` rows in front."""
+    population = (np.argsort(rng.random((m, dims)), axis=0) + rng.random((m, dims))) / m
     if initial is not None and len(initial):
         seeds = np.atleast_2d(np.asarray(initial, float))[:m]
         population[: len(seeds)] = seeds
-    fitness = np.asarray(fitness_of(population), float)
-    evaluations = m
+    return population
 
+
+def _deap_ga(fitness_of: BatchFitness, dims: int, options: GAOptions, seed: int,
+             initial: np.ndarray | None,
+             on_generation: Callable[[int, float], None] | None) -> GAResult:
+    """The ``deap`` strategy (module docstring): mu = lambda = the population, every
+    generation to the end. The loop is ``algorithms.eaMuPlusLambda``'s (``varOr``, evaluate
+    the new individuals, select mu of parents + offspring), written out to report each
+    generation's progress."""
+    m = options.population
+    toolbox = base.Toolbox()
+    toolbox.register("mate", tools.cxSimulatedBinaryBounded, eta=options.sbx_eta, low=0.0,
+                     up=1.0)
+    toolbox.register("mutate", tools.mutPolynomialBounded, eta=options.polynomial_eta, low=0.0,
+                     up=1.0, indpb=1.0 / dims)
+    toolbox.register("select", tools.selTournament, tournsize=options.tournament)
     hall = tools.HallOfFame(1)
+    stats = _statistics()
+    logbook = tools.Logbook()
+    logbook.header = ["gen", "nevals", "best", "mean", "std"]
+
+    def evaluate(individuals) -> int:
+        fresh = [ind for ind in individuals if not ind.fitness.valid]
+        if fresh:
+            for ind, value in zip(fresh, np.asarray(fitness_of(np.array(fresh, float)), float)):
+                ind.fitness.values = (float(value),)
+        return len(fresh)
+
+    def record(gen: int, nevals: int, new, kept) -> None:
+        hall.update(new)
+        logbook.record(gen=gen, nevals=nevals, **stats.compile(kept))
+        if on_generation is not None:
+            on_generation(gen, float(hall[0].fitness.values[0]))
+
+    state = random.getstate()
+    try:
+        random.seed(seed)
+        rng = np.random.default_rng(np.random.SeedSequence(seed))
+        population = [creator.FaultCandidate(row.tolist())
+                      for row in _first_population(rng, m, dims, initial)]
+        evaluations = evaluate(population)
+        record(0, evaluations, population, population)
+        for gen in range(1, options.generations + 1):
+            offspring = algorithms.varOr(population, toolbox, m, options.crossover,
+                                         options.mutation)
+            nevals = evaluate(offspring)
+            evaluations += nevals
+            population = toolbox.select(population + offspring, m)
+            record(gen, nevals, offspring, population)
+    finally:
+        random.setstate(state)
+    return GAResult(np.asarray(hall[0], float), float(hall[0].fitness.values[0]), evaluations,
+                    options.generations, logbook, "generations")
+
+
+def _statistics() -> tools.Statistics:
     stats = tools.Statistics(lambda ind: ind.fitness.values[0])
     stats.register("best", np.min)
     stats.register("mean", np.mean)
     stats.register("std", np.std)
+    return stats
+
+
+def _numpy_ga(fitness_of: BatchFitness, dims: int, options: GAOptions, seed: int,
+              circular: Sequence[bool] | None, initial: np.ndarray | None,
+              on_generation: Callable[[int, float], None] | None) -> GAResult:
+    """The ``numpy`` strategy: a generational GA (module docstring).
+
+    Elitism keeps the ``elite`` best; a DEAP hall of fame keeps the best ever.
+    Stops after ``options.generations`` or when the best fitness has not improved
+    by ``tolerance`` (relative) for ``patience`` generations.
+    """
+    rng = np.random.default_rng(np.random.SeedSequence(seed))
+    circ = np.zeros(dims, bool) if circular is None else np.asarray(circular, bool)
+    m = options.population
+    population = _first_population(rng, m, dims, initial)
+    fitness = np.asarray(fitness_of(population), float)
+    evaluations = m
+
+    hall = tools.HallOfFame(1)
+    stats = _statistics()
     logbook = tools.Logbook()
     logbook.header = ["gen", "nevals", "best", "mean", "std"]
 

