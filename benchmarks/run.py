@@ -35,10 +35,11 @@ ROOT = Path(__file__).resolve().parent.parent
 FIG10 = ROOT / "configs" / "fig10-multiple-faults.yaml"
 QUICK = ROOT / "campaigns" / "quick.yaml"
 SWEEP_CASES = 8  # cases per timed sweep (4 per core on 2 cores)
-BARS = {  # SPEC 10: (bar, "max" or "min")
-    "reference_chirp_ms": (200.0, "max"),
-    "monitor_chirp_ms": (2.0, "max"),
-    "identify_s": (10.0, "max"),
+BARS = {  # (bar, "max" or "min"): SPEC 10's for the Reference, the speed issue's (#16) targets
+    "reference_chirp_ms": (200.0, "max"),  # for the rest, stricter than SPEC 10's 2 ms and 10 s
+    "monitor_chirp_ms": (0.9, "max"),
+    "identify_s": (2.0, "max"),
+    "sweep_cases_per_min": (35.0, "min"),
 }
 
 
@@ -108,6 +109,10 @@ def measure(repeat: int) -> dict[str, float]:
         lambda: reference.run(params, inp, faults, scenario.seed), repeat)
     figures["monitor_chirp_ms"] = 1e3 * median_time(
         lambda: monitor.run(params, inp, healthy), max(repeat, 20))
+    # what the GA mostly runs: every fault present, eccentricity's trigonometry included
+    fig10 = monitor_form(flatten(scenario.faults), params.spec.monitor.eccentricity_gain)
+    figures["monitor_faulty_chirp_ms"] = 1e3 * median_time(
+        lambda: monitor.run(params, inp, fig10), max(repeat, 20))
     numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
 
     trace = reference.simulate(scenario, params)
@@ -125,7 +130,7 @@ def measure(repeat: int) -> dict[str, float]:
     figures["sweep_cases_per_min"] = SWEEP_CASES / (median_time(
         lambda: sweep_once(SWEEP_CASES), max(1, repeat // 2)) / 60.0)
     figures["cores"] = numba.config.NUMBA_NUM_THREADS
-    for name in ("reference_chirp_ms", "monitor_chirp_ms"):
+    for name in ("reference_chirp_ms", "monitor_chirp_ms", "monitor_faulty_chirp_ms"):
         figures[name.replace("_ms", "_per_plain")] = figures[name] / figures["plain_loop_ms"]
     figures["identify_per_plain"] = figures["identify_s"] / plain_s
     return figures

@@ -27,6 +27,8 @@ one, which is what fault-signature fidelity (SPEC 1) guarantees. Two sources:
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 from typing import NamedTuple
 
@@ -298,12 +300,38 @@ def fine_plant(plant: Plant) -> Plant:
                                              current_lsb=s.current_lsb * FINE_QUANTISATION))
 
 
+#: Nominal discrepancies already computed in this process, by set, inputs and numerics: the
+#: cases of a campaign on one set and one command share theirs (a Reference run each).
+_DISCREPANCIES: dict[str, dict[str, np.ndarray]] = {}
+_DISCREPANCIES_KEPT = 8
+
+
+def _discrepancy_key(inputs: Inputs, params: Parameters, numerics: Numerics) -> str:
+    digest = hashlib.sha256(json.dumps(params.values(), sort_keys=True).encode())
+    for array in (inputs.time, inputs.command, inputs.load_torque):
+        digest.update(np.ascontiguousarray(array, float).tobytes())
+    digest.update(repr((float(inputs.load_stiffness), tuple(numerics))).encode())
+    return digest.hexdigest()
+
+
 def nominal_discrepancy(inputs: Inputs, params: Parameters,
                         numerics: Numerics = DEFAULT) -> dict[str, np.ndarray]:
-    """Healthy Reference minus healthy Monitor, noise-free, on the same inputs (controller grid)."""
-    ref, _ = reference.run(params, inputs, HEALTHY, with_noise=False, numerics=numerics)
-    mon = monitor.run(params, inputs, monitor_form(healthy_values(), 1.0), numerics)
-    return {name: ref[name] - mon[name] for name in SIGNALS}
+    """Healthy Reference minus healthy Monitor, noise-free, on the same inputs (controller grid).
+
+    Kept per process (read-only arrays) for the next identification with the same set,
+    inputs and numerics.
+    """
+    key = _discrepancy_key(inputs, params, numerics)
+    if key not in _DISCREPANCIES:
+        ref, _ = reference.run(params, inputs, HEALTHY, with_noise=False, numerics=numerics)
+        mon = monitor.run(params, inputs, monitor_form(healthy_values(), 1.0), numerics)
+        found = {name: ref[name] - mon[name] for name in SIGNALS}
+        for array in found.values():
+            array.setflags(write=False)
+        if len(_DISCREPANCIES) >= _DISCREPANCIES_KEPT:
+            _DISCREPANCIES.pop(next(iter(_DISCREPANCIES)))
+        _DISCREPANCIES[key] = found
+    return _DISCREPANCIES[key]
 
 
 def reference_correction(inputs: Inputs, params: Parameters, numerics: Numerics = DEFAULT,
