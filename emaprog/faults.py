@@ -26,7 +26,7 @@ from typing import Literal, NamedTuple
 
 from .kernels.structs import FaultParams, MonitorFaults
 
-__all__ = ["CATALOGUE", "FAULTS", "FAULT_NAMES", "HEALTHY", "PHASES", "PHASE_FAULT", "QUANTITIES", "Fault",
+__all__ = ["CATALOGUE", "FAULTS", "FAULT_NAMES", "HEALTHY", "PHASES", "PHASE_FAULT", "QUANTITIES", "Fault", "ModelError",
            "FaultParams", "MonitorFaults", "Quantity", "flatten", "healthy_values",
            "monitor_form", "nested", "reference_form", "severity", "values_of", "worst_phase"]
 
@@ -50,6 +50,17 @@ class Quantity(NamedTuple):
     circular: bool  # an angle: wraps around, errors wrapped into (-pi, pi]
 
 
+class ModelError(NamedTuple):
+    """A quantity's standard error beyond the noise: ``sqrt((factor sigma)^2 + (share d)^2)``,
+    ``sigma`` the linearised standard error from the fit's residual, ``d`` the estimate's
+    deviation from healthy. ``factor`` [-] widens what the residual shows; ``share`` [-] is a
+    relative error of the Monitor's fault signature (SPEC 1's signature errors are relative:
+    the larger the fault, the larger the part of the error no residual noise explains)."""
+
+    factor: float
+    share: float = 0.0
+
+
 class Fault(NamedTuple):
     name: str
     label: str
@@ -64,19 +75,18 @@ class Fault(NamedTuple):
     #: backlash 3.7e-5 rad, shorted fraction 0.04, zeta 0.11). Today's p95 are 2-5 times
     #: smaller (docs/sweep/quick) but the tails are not (largest shorted fraction error 0.07).
     identification_sigma: float
-    #: [-] factors on the linearised standard errors of its quantities, one per quantity
-    #: in ``quantities`` order, for a unit's own parameter set (commissioned, or the shipped
-    #: one): the Monitor's deterministic mismatch with the three-phase motor and the
-    #: baseline's own error, which the residual's noise does not show, widen the real error
-    #: distribution. Calibrated with ``benchmarks/interval_factors.py`` on
+    #: How much wider than its linearised standard error each quantity's error really is,
+    #: one :class:`ModelError` per quantity in ``quantities`` order, for a unit's own
+    #: parameter set (commissioned, or the shipped one): the Monitor's deterministic
+    #: mismatch with the three-phase motor and the baseline's own error, which the
+    #: residual's noise does not show. Calibrated with ``benchmarks/interval_factors.py`` on
     #: ``campaigns/calibration-units.yaml`` (100 commissioned spread units), kept apart from
-    #: the robustness campaign on which the intervals are then checked: the factor whose
-    #: 90 % interval holds the truth in 90 % of the cases.
-    model_error_factor: tuple[float, ...]
-    #: [-] the same for a twin experiment (a trace of emaprog's Reference Model identified
-    #: with the very values that produced it: only the Monitor's mismatch is left), calibrated
-    #: on ``campaigns/calibration-twins.yaml`` (150 cases) and checked on the quick campaign.
-    twin_error_factor: tuple[float, ...]
+    #: the robustness campaign on which the intervals are then checked.
+    model_error: tuple["ModelError", ...]
+    #: The same for a twin experiment (a trace of emaprog's Reference Model identified with
+    #: the very values that produced it: only the Monitor's mismatch is left), calibrated on
+    #: ``campaigns/calibration-twins.yaml`` (150 cases) and checked on the quick campaign.
+    twin_error: tuple["ModelError", ...]
 
     @property
     def magnitudes(self) -> tuple[Quantity, ...]:
@@ -93,21 +103,25 @@ CATALOGUE: tuple[Fault, ...] = (
     Fault("friction", "dry-friction increase", "scalar",
           (Quantity("friction", None, "-", 1.0, 0.1, 10.0, False, "friction multiplier", "relative",
                     0.05, False),),
-          "friction |k_f - 1| [-]", (0.5, 4.0), (0.1, 10.0), 0.019, (2.1,), (1.0,)),
+          "friction |k_f - 1| [-]", (0.5, 4.0), (0.1, 10.0), 0.019,
+          (ModelError(1.93, 0.02),), (ModelError(0.48, 0.01),)),
     Fault("backlash", "backlash", "scalar",
           (Quantity("backlash", None, "rad", 0.0, 0.0, 0.01, False, "backlash", "absolute", 5e-5,
                     False),),
-          "backlash, total play [rad]", (0.0, 1.5e-3), (0.0, 0.01), 1.9e-5, (4.6,), (3.4,)),
+          "backlash, total play [rad]", (0.0, 1.5e-3), (0.0, 0.01), 1.9e-5,
+          (ModelError(2.4, 0.035),), (ModelError(0.45, 0.035),)),
     Fault("short_circuit", "phase short circuit", "per_phase",
           tuple(_phase(x) for x in "abc"),
-          "short circuit, worst phase [-]", (0.0, 0.5), (0.0, 0.95), 0.02, (1.85, 1.85, 1.85),
-          (2.25, 2.25, 2.25)),
+          "short circuit, worst phase [-]", (0.0, 0.5), (0.0, 0.95), 0.02,
+          (ModelError(1.64, 0.015),) * 3, (ModelError(1.64, 0.015),) * 3),
     Fault("eccentricity", "rotor static eccentricity", "polar",
           (Quantity("eccentricity_zeta", "zeta", "-", 0.0, 0.0, 1.0, True, "eccentricity zeta",
                     "absolute", 0.05, False),
            Quantity("eccentricity_phase", "phase", "rad", 0.0, 0.0, TWO_PI, False,
                     "eccentricity phase", "absolute", None, True)),
-          "eccentricity zeta [-]", (0.0, 0.8), (0.0, 0.95), 0.055, (2.0, 2.9), (2.9, 3.1)),
+          "eccentricity zeta [-]", (0.0, 0.8), (0.0, 0.95), 0.055,
+          (ModelError(0.74, 0.075), ModelError(2.68)),
+          (ModelError(0.78, 0.05), ModelError(3.15))),
 )
 
 FAULTS: dict[str, Fault] = {f.name: f for f in CATALOGUE}

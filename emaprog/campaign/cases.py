@@ -269,6 +269,7 @@ def run_case(spec: CaseSpec) -> dict:
         low, high = confidence.interval.get(name, (nan, nan))
         row[f"low_{name}"], row[f"high_{name}"] = float(low), float(high)
         row[f"se_{name}"] = float(confidence.standard_error.get(name, nan))
+        row[f"sigma_{name}"] = float(confidence.linear_error.get(name, nan))
     for fault in FAULT_NAMES:
         row[f"health_{fault}"] = health.get(fault, "not estimated")
         row[f"true_health_{fault}"] = true_health[fault]

@@ -26,10 +26,15 @@ Three questions, answered after the optimiser has its estimate:
    (:func:`correlation_length`: the effective sample count is ``n / L``). That
    sees the noise but not the Monitor's deterministic mismatch with the motor,
    which dominates on clean recordings (measured on the quick campaign: 32-70 %
-   coverage as it is): each fault's standard errors are multiplied by its
-   :attr:`~emaprog.faults.Fault.model_error_factor`, calibrated on the quick
-   and robustness campaigns. The 90 % interval is
-   ``estimate +- 1.645 sigma`` clipped to the quantity's range; the
+   coverage as it is). Each quantity's standard error is widened by its
+   :class:`~emaprog.faults.ModelError` law, ``sqrt((factor sigma)^2 + (share d)^2)``
+   with ``d`` the estimate's deviation from healthy (the Monitor's signature error
+   grows with the fault), one law for a twin experiment (:func:`is_twin`: the trace is
+   the Reference Model with this very set) and one for a unit's own set, each
+   calibrated on its own calibration campaign to 90 % coverage on healthy and on
+   faulty truths (``benchmarks/interval_factors.py``). The 90 % interval is
+   ``estimate +- 1.645 sigma`` clipped to the quantity's range (zeta's from 0 when the
+   estimate is consistent with a healthy rotor: :func:`quantity_interval`); the
    eccentricity phase gets an arc (the whole circle when the phase is not
    determined). A fault whose severity interval holds the healthy value and
    reaches the incipient threshold is not determined by the recording (it cannot
@@ -49,11 +54,14 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..faults import CATALOGUE, FAULTS, PHASE_FAULT, QUANTITIES, worst_phase
+from ..faults import CATALOGUE, FAULTS, PHASE_FAULT, QUANTITIES, ModelError, worst_phase
 from ..kernels.structs import Plant
 from .objective import SIGNALS, Objective, fine_plant
 
 Z90 = 1.6448536269514722  # two-sided 90 % quantile of the normal distribution
+#: 90 % quantile of the length of a 2-D normal vector of zero mean, over its per-axis sigma
+#: (Rayleigh: sqrt(-2 ln 0.1)); see :func:`quantity_interval`.
+RAYLEIGH90 = 2.1459660262893472
 #: [-] fitness over the recording's noise floor above which the Monitor does not explain it.
 #: Measured (fitness / floor, min / median / max): quick campaign 1.7 / 2.5 / 5.0, regression
 #: 1.5 / 2.1 / 2.7, robustness commissioned 2.0 / 3.5 / 22.3 (the largest under 50-90 N m
@@ -80,7 +88,8 @@ class Confidence(NamedTuple):
     inconclusive: dict[str, str]  # fault -> why (only the inconclusive ones)
     isolation: dict | None  # short-circuit phase confidence, when a short is named
     method: str
-    twin: bool  # the twin experiment's model-error factors were used (:func:`is_twin`)
+    twin: bool  # the twin experiment's model-error laws were used (:func:`is_twin`)
+    linear_error: dict[str, float]  # the linearised standard errors, before the laws
 
 
 def noise_sigma(x: np.ndarray, lsb: float) -> float:
@@ -210,16 +219,21 @@ def _coordinates(objective: Objective, values: dict[str, float]) -> tuple[list[_
     return coords, point
 
 
-def quantity_factor(name: str, twin: bool = False) -> float:
-    """The model-error factor of a fault quantity: :attr:`~emaprog.faults.Fault.model_error_factor`
-    for a unit's own set, :attr:`~emaprog.faults.Fault.twin_error_factor` in a twin experiment;
-    1 for anything else (a nuisance: not calibrated)."""
+def quantity_error(name: str, twin: bool = False) -> ModelError:
+    """The model-error law of a fault quantity: :attr:`~emaprog.faults.Fault.model_error` for
+    a unit's own set, :attr:`~emaprog.faults.Fault.twin_error` in a twin experiment; the
+    bare linearised error for anything else (a nuisance: not calibrated)."""
     for fault in CATALOGUE:
-        factors = fault.twin_error_factor if twin else fault.model_error_factor
-        for q, factor in zip(fault.quantities, factors):
+        for q, law in zip(fault.quantities, fault.twin_error if twin else fault.model_error):
             if q.name == name:
-                return factor
-    return 1.0
+                return law
+    return ModelError(1.0)
+
+
+def widened(law: ModelError, sigma: float, deviation: float) -> float:
+    """The standard error of :class:`~emaprog.faults.ModelError` ``law`` for a linearised
+    ``sigma`` and an estimate ``deviation`` from healthy."""
+    return math.hypot(law.factor * sigma, law.share * deviation)
 
 
 def is_twin(trace, params) -> bool:
@@ -289,9 +303,19 @@ def covariance(jac: np.ndarray, residual: np.ndarray, blocks: list[int]) -> np.n
     return cov
 
 
-def _clip(q_name: str, low: float, high: float) -> tuple[float, float]:
-    q = QUANTITIES[q_name]
-    return max(low, q.lower), min(high, q.upper)
+def quantity_interval(name: str, value, se):
+    """The 90 % interval of a fault quantity from its estimate and standard error (floats
+    or arrays): ``value +- 1.645 se`` clipped to the quantity's range. A polar magnitude
+    (zeta) is the length of a 2-D estimate, which is never negative: on a healthy rotor it
+    is Rayleigh-distributed and exceeds ``1.645 se`` in 26 % of cases, its 90 % quantile is
+    :data:`RAYLEIGH90` ``se``. An estimate within that of zero is therefore consistent with
+    zero, and its interval starts at 0."""
+    q = QUANTITIES[name]
+    low = value - Z90 * se
+    if PLANE and name == PLANE.magnitude:
+        low = np.where(value <= RAYLEIGH90 * se, q.lower, low)
+    low, high = np.maximum(low, q.lower), np.minimum(value + Z90 * se, q.upper)
+    return (float(low), float(high)) if np.ndim(low) == 0 else (low, high)
 
 
 def assess(objective: Objective, trace, values: dict[str, float], fitness: float,
@@ -300,42 +324,39 @@ def assess(objective: Objective, trace, values: dict[str, float], fitness: float
     floor = noise_floor(objective, trace, fitness)
     residual, blocks = residual_vector(objective, values)
     coords, jac = jacobian(objective, values)
-    # the plane's coordinates stay unscaled: its radial and tangential errors get the
-    # magnitude's and the angle's own factors below
-    factor = np.array([quantity_factor(c.name, twin) for c in coords])
-    cov = covariance(jac, residual, blocks) * np.outer(factor, factor)
-    sigma = {c.name: math.sqrt(cov[k, k]) if np.isfinite(cov[k, k]) else math.inf
-             for k, c in enumerate(coords)}
-    interval, standard_error = {}, {}
+    cov = covariance(jac, residual, blocks)
+    linear = {c.name: math.sqrt(cov[k, k]) if np.isfinite(cov[k, k]) else math.inf
+              for k, c in enumerate(coords)}
     plane = (PLANE.x, PLANE.y) if PLANE else ()
-    for c in coords:
-        if c.name in plane:
-            continue
-        half = Z90 * sigma[c.name]
-        standard_error[c.name] = sigma[c.name]
-        if c.name in QUANTITIES:
-            interval[c.name] = _clip(c.name, values[c.name] - half, values[c.name] + half)
-        else:
-            interval[c.name] = (values[c.name] - half, values[c.name] + half)
-    if PLANE and PLANE.x in sigma:
+    if PLANE and PLANE.x in linear:  # the plane's errors along and across the estimate
         k = [i for i, c in enumerate(coords) if c.name in plane]
         block = cov[np.ix_(k, k)]
         zeta, phase = values[PLANE.magnitude], values[PLANE.angle]
         radial = np.array([math.cos(phase), math.sin(phase)])
         tangent = np.array([-math.sin(phase), math.cos(phase)])
-        if np.all(np.isfinite(block)):
-            s_r = quantity_factor(PLANE.magnitude, twin) * math.sqrt(
-                max(float(radial @ block @ radial), 0.0))
-            s_t = quantity_factor(PLANE.angle, twin) * math.sqrt(
-                max(float(tangent @ block @ tangent), 0.0))
+        finite = bool(np.all(np.isfinite(block)))
+        linear[PLANE.magnitude] = (math.sqrt(max(float(radial @ block @ radial), 0.0))
+                                   if finite else math.inf)
+        across = math.sqrt(max(float(tangent @ block @ tangent), 0.0)) if finite else math.inf
+        linear[PLANE.angle] = across / zeta if zeta > 0 else math.inf
+    interval, standard_error = {}, {}
+    for name, s in linear.items():
+        if name in plane:
+            continue
+        q = QUANTITIES.get(name)
+        if q is None:  # a nuisance: its linearised error, not calibrated
+            standard_error[name] = s
+            interval[name] = (values[name] - Z90 * s, values[name] + Z90 * s)
+            continue
+        deviation = 0.0 if q.circular else abs(values[name] - q.healthy)
+        standard_error[name] = widened(quantity_error(name, twin), s, deviation)
+        if q.circular:
+            arc = Z90 * standard_error[name]
+            interval[name] = ((0.0, 2.0 * math.pi) if arc >= math.pi
+                              else (values[name] - arc, values[name] + arc))
         else:
-            s_r = s_t = math.inf
-        standard_error[PLANE.magnitude] = s_r
-        interval[PLANE.magnitude] = _clip(PLANE.magnitude, zeta - Z90 * s_r, zeta + Z90 * s_r)
-        arc = Z90 * s_t / zeta if zeta > 0 else math.inf
-        standard_error[PLANE.angle] = s_t / zeta if zeta > 0 else math.inf
-        interval[PLANE.angle] = ((0.0, 2.0 * math.pi) if arc >= math.pi
-                              else (phase - arc, phase + arc))
+            interval[name] = quantity_interval(name, values[name], standard_error[name])
+    linear = {name: s for name, s in linear.items() if name not in plane}
     inconclusive = {}
     for fault in estimated:
         if not floor.explained:
@@ -357,11 +378,14 @@ def assess(objective: Objective, trace, values: dict[str, float], fitness: float
              else "a unit's own parameter set")
     method = ("linearised (sandwich) covariance of the weighted least-squares fit at the "
               "estimate, correlated residuals counted by their correlation length, times each "
-              f"quantity's model-error factor for {basis} ("
-              + ", ".join(f"{q.name} {quantity_factor(q.name, twin):g}"
+              f"quantity's model-error law for {basis}, sqrt((factor sigma)^2 + (share "
+              "deviation from healthy)^2) ("
+              + ", ".join(f"{q.name} {quantity_error(q.name, twin).factor:g}/"
+                          f"{quantity_error(q.name, twin).share:g}"
                           for f in CATALOGUE for q in f.quantities)
               + "; calibrated on separate calibration campaigns to 90 % coverage)")
-    return Confidence(floor, interval, standard_error, inconclusive, isolation, method, twin)
+    return Confidence(floor, interval, standard_error, inconclusive, isolation, method, twin,
+                      linear)
 
 
 def _isolation(objective: Objective, values: dict[str, float], fitness: float, samples: int,
