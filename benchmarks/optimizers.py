@@ -38,12 +38,12 @@ from deap import cma, creator
 from scipy.optimize import differential_evolution, minimize as local_minimize
 
 from emaprog.campaign.cases import case_specs, load_parameters, with_hinge
-from emaprog.config.scenario import IdentifySettings, load_campaign
+from emaprog.config.scenario import load_campaign
 from emaprog.faults import FAULTS, QUANTITIES, flatten
 from emaprog.identification import result as verdicts
 from emaprog.identification.ga import GAOptions, minimize as ga_minimize
 from emaprog.identification.objective import Objective, reference_correction
-from emaprog.identification.run import polish
+from emaprog.identification.run import DEFAULT_GA, ga_budget, polish
 from emaprog.models import reference
 from emaprog.models.common import inputs
 
@@ -51,7 +51,7 @@ from _output import finish, parser  # the sibling module benchmarks/_output.py
 
 ROOT = Path(__file__).resolve().parent.parent
 CAMPAIGN = ROOT / "campaigns" / "regression.yaml"
-POPULATION = IdentifySettings().ga.population  # DE and CMA-ES generations of the GA's size
+POPULATION = DEFAULT_GA[0]  # DE and CMA-ES generations of the GA's size
 STARTS = 6
 
 
@@ -127,8 +127,8 @@ def run_cases(count: int) -> list[dict]:
             objective = Objective(trace, inp, params, spec.settings, correction=correction)
             start = time.perf_counter()
             if name == "ga":  # first: its Monitor runs are every optimiser's budget
-                options = GAOptions(population=spec.settings.ga.population,
-                                    generations=spec.settings.ga.generations)
+                population, generations = ga_budget(spec.settings.ga, trace.sample_rate)
+                options = GAOptions(population=population, generations=generations)
                 found = ga_minimize(objective, objective.dims, options, seed=spec.settings.ga.seed,
                                     circular=objective.circular,
                                     initial=objective.healthy_genes()[None]).best

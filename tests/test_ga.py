@@ -160,3 +160,17 @@ def test_both_polishes_bring_a_perturbed_estimate_within_spec(params, method):
     assert abs(found["eccentricity_zeta"] - truth["eccentricity_zeta"]) < 0.05
     if method == "least_squares":
         assert objective.evaluations - before < 300
+
+
+def test_default_budget_grows_for_slow_recordings_and_never_overrides_a_given_one():
+    """32 x 20 at the controller's 10 kHz, 64 x 40 below 2.5 kHz (benchmarks/rates.py: at
+    1 kHz the smaller budget lost the short circuit and zeta); a budget the settings name
+    is kept at any rate, also when only one of the two is given."""
+    from emaprog.config.scenario import GASettings
+    from emaprog.identification.run import ga_budget
+
+    assert ga_budget(GASettings(), 10_000.0) == (32, 20)
+    assert ga_budget(GASettings(), 5_000.0) == (32, 20)
+    assert ga_budget(GASettings(), 1_000.0) == (64, 40)
+    assert ga_budget(GASettings(population=16, generations=8), 1_000.0) == (16, 8)
+    assert ga_budget(GASettings(population=16), 1_000.0) == (16, 40)

@@ -164,10 +164,14 @@ class Signals(Strict):
 
 
 class GASettings(Strict):
-    # 32 x 20 behind the least-squares polish: as accurate as 64 x 40 on the quick, robustness
-    # and regression campaigns at a quarter of the Monitor runs (README, Validation and speed)
-    population: Annotated[int, Field(strict=True, ge=4, le=4096)] = 32
-    generations: Annotated[int, Field(strict=True, ge=1, le=1000)] = 20
+    # omitted: 32 x 20 behind the least-squares polish (as accurate as 64 x 40 on the quick,
+    # robustness and regression campaigns at a quarter of the Monitor runs), 64 x 40 for a
+    # recording below 2.5 kHz (emaprog.identification.run.ga_budget; README)
+    population: Optional[Annotated[int, Field(strict=True, ge=4, le=4096)]] = Field(
+        None, description="individuals per generation; omitted: 32, or 64 for a recording "
+                          "below 2.5 kHz")
+    generations: Optional[Annotated[int, Field(strict=True, ge=1, le=1000)]] = Field(
+        None, description="omitted: 20, or 40 for a recording below 2.5 kHz")
     crossover: _num(0.0, 1.0, description="[-] crossover probability") = 0.7
     mutation: _num(0.0, 1.0, description="[-] mutation probability") = 0.2
     seed: Annotated[int, Field(strict=True, ge=0, le=2**32 - 1)] = 1

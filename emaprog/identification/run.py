@@ -29,6 +29,23 @@ REFINE_EVALUATIONS = 400  # budget of the Powell polish after the GA [Monitor ru
 REFINE_STEPS = 30
 #: Finite-difference step of the least-squares polish's Jacobian [polish coordinates, of 1].
 JACOBIAN_STEP = 1e-3
+#: The GA's (population, generations) when the settings leave them out: 32 x 20 in front of
+#: the least-squares polish (README: as accurate as 64 x 40 on the campaigns, a quarter of the
+#: Monitor runs), :data:`LOW_RATE_GA` for a recording slower than :data:`LOW_RATE` [Hz], where
+#: the aliased commutation structure makes the search harder. Measured
+#: (``benchmarks/rates.py``, 10 regression cases) at 1 kHz: 32 x 20 within SPEC 10 on the
+#: short circuit in 80 % of cases and on zeta in 60 %, 64 x 40 in 90 % and 100 %; at 2 kHz and
+#: above both budgets are level.
+DEFAULT_GA = (32, 20)
+LOW_RATE_GA = (64, 40)
+LOW_RATE = 2500.0
+
+
+def ga_budget(ga, sample_rate: float) -> tuple[int, int]:
+    """(population, generations) of ``identify.ga`` for a recording at ``sample_rate`` [Hz]."""
+    population, generations = DEFAULT_GA if sample_rate >= LOW_RATE else LOW_RATE_GA
+    return (population if ga.population is None else ga.population,
+            generations if ga.generations is None else ga.generations)
 
 
 class Identification(NamedTuple):
@@ -216,10 +233,11 @@ def identify_trace(trace: Trace, inputs: Inputs, params: Parameters, settings: I
     correction = choose_correction(trace, inputs, params, settings, numerics, recordings)
     objective = Objective(trace, inputs, params, settings, numerics, correction)
     ga = settings.ga
-    options = GAOptions(population=ga.population, generations=ga.generations,
+    population, generations = ga_budget(ga, trace.sample_rate)
+    options = GAOptions(population=population, generations=generations,
                         crossover=ga.crossover, mutation=ga.mutation, strategy=ga.strategy)
     healthy = objective.healthy_genes()
-    with progress.task("identify", ga.generations, show_progress) as advance:
+    with progress.task("identify", generations, show_progress) as advance:
 
         def on_generation(gen: int, best: float) -> None:
             if gen:
