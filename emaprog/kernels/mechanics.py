@@ -35,9 +35,9 @@ def link_torque(theta_m, omega_m, theta_s, omega_s, backlash, mech):
     clipped so the contact only pushes (no adhesive pull on separation).
     Returns (link torque, its spring part ``K (twist -+ b/2)``).
     """
-    n = mech.gear_ratio
-    twist = theta_m / n - theta_s
-    rate = omega_m / n - omega_s
+    inv_n = 1.0 / mech.gear_ratio  # a constant: the division leaves the time loop
+    twist = theta_m * inv_n - theta_s
+    rate = omega_m * inv_n - omega_s
     half = 0.5 * backlash
     if twist > half:
         spring = mech.transmission_stiffness * (twist - half)
@@ -84,9 +84,9 @@ def borello_velocity(omega, active, static, dynamic, inertia, dt):
         if abs(active) <= static:
             return 0.0, -active
         friction = -dynamic if active > 0.0 else dynamic
-        return (active + friction) / inertia * dt, friction
+        return (active + friction) * (dt / inertia), friction
     friction = -dynamic if omega > 0.0 else dynamic
-    new = omega + (active + friction) / inertia * dt
+    new = omega + (active + friction) * (dt / inertia)
     if new * omega < 0.0:
         return 0.0, friction
     return new, friction
@@ -113,7 +113,7 @@ def mechanics_step(theta_m, omega_m, theta_s, omega_s, motor_torque, load_torque
         New state and the :class:`TransmissionTorques` applied in the step.
     """
     link, spring = link_torque(theta_m, omega_m, theta_s, omega_s, backlash, mech)
-    active_m = motor_torque - mech.motor_viscous * omega_m - link / mech.gear_ratio
+    active_m = motor_torque - mech.motor_viscous * omega_m - link * (1.0 / mech.gear_ratio)
     new_omega_m, friction = borello_velocity(
         omega_m, active_m, friction_scale * mech.static_friction,
         friction_scale * mech.dynamic_friction, mech.motor_inertia, dt,
@@ -121,6 +121,6 @@ def mechanics_step(theta_m, omega_m, theta_s, omega_s, motor_torque, load_torque
     hinge = load_torque + load_stiffness * theta_s
     stop = end_stop_torque(theta_s, omega_s, mech)
     active_s = link - mech.surface_damping * omega_s - hinge + stop
-    new_omega_s = omega_s + active_s / mech.surface_inertia * dt
+    new_omega_s = omega_s + active_s * (dt / mech.surface_inertia)
     return (theta_m + new_omega_m * dt, new_omega_m, theta_s + new_omega_s * dt, new_omega_s,
             TransmissionTorques(link, spring, friction, hinge, stop))

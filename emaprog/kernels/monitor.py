@@ -135,19 +135,20 @@ def pair_eccentricity_coefficients(theta_e, s6, z, offsets, phase_working, unit_
 
 
 @njit(cache=True)
-def equivalent_branch_step(current, current_ref, gain, resistance, a, omega, vdc):
+def equivalent_branch_step(current, current_ref, gain, a, drive, back, omega, vdc):
     """Exact RL update of the equivalent branch under a saturated ideal regulator [A].
 
     The regulator applies the voltage that brings the current to ``current_ref``
     at the end of the step (``i' = a i + (1 - a)(V - E)/R``, with the decay
-    factor ``a = exp(-R dt/L)`` [-] precomputed per sector), clipped to the
-    bridge's +/-Vdc: the slew-rate limit of the real H-bridge without its
-    switching ripple.
+    factor ``a = exp(-R dt/L)`` [-]), clipped to the bridge's +/-Vdc: the slew-rate
+    limit of the real H-bridge without its switching ripple. ``drive = R / (1 - a)``
+    [ohm] and ``back = (1 - a) / R`` [1/ohm] are precomputed per sector with ``a``
+    (no division in the time loop).
     """
     emf = gain * omega
-    needed = resistance * (current_ref - a * current) / (1.0 - a) + emf
+    needed = drive * (current_ref - a * current) + emf
     volts = clip(needed, vdc)
-    return a * current + (1.0 - a) * (volts - emf) / resistance
+    return a * current + back * (volts - emf)
 
 
 @njit(cache=True)
@@ -238,11 +239,15 @@ def simulate_monitor(drive, plant, faults, options, out):
     sector_gain = np.empty(6)
     sector_r = np.empty(6)
     sector_decay = np.empty(6)
+    sector_drive = np.empty(6)
+    sector_back = np.empty(6)
     for s6 in range(6):
         f_psc, f_l = sector_short_circuit_factors(s6, n_a, n_b, n_c, options.short_circuit_model)
         sector_gain[s6] = base_gain * f_psc
         sector_r[s6] = base_r * f_psc
         sector_decay[s6] = math.exp(-base_r * f_psc * dt / (base_l * f_l))
+        sector_drive[s6] = sector_r[s6] / (1.0 - sector_decay[s6])
+        sector_back[s6] = (1.0 - sector_decay[s6]) / sector_r[s6]
     z = faults.eccentricity_z
     phi = faults.eccentricity_phase
     eccentric = z != 0.0
@@ -300,8 +305,9 @@ def simulate_monitor(drive, plant, faults, options, out):
                     i, outgoing, current_ref, s6, theta_e, omega_m, k_phase, r_phase, l_phase,
                     elec.dc_bus_voltage, dt)
             else:
-                i = equivalent_branch_step(i, current_ref, gain, sector_r[s6], sector_decay[s6],
-                                           omega_m, elec.dc_bus_voltage)
+                i = equivalent_branch_step(i, current_ref, gain, sector_decay[s6],
+                                           sector_drive[s6], sector_back[s6], omega_m,
+                                           elec.dc_bus_voltage)
                 torque = gain * i
                 measured = i
             torque *= max(0.0, 1.0 - options.commutation_loss * abs(omega_m))
