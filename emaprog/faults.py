@@ -80,8 +80,10 @@ class Fault(NamedTuple):
     #: parameter set (commissioned, or the shipped one): the Monitor's deterministic
     #: mismatch with the three-phase motor and the baseline's own error, which the
     #: residual's noise does not show. Calibrated with ``benchmarks/interval_factors.py`` on
-    #: ``campaigns/calibration-units.yaml`` (100 commissioned spread units), kept apart from
-    #: the robustness campaign on which the intervals are then checked.
+    #: two runs of ``campaigns/calibration-units.yaml`` (100 commissioned spread units each;
+    #: the runs' numerics differed at 1e-12, which commissioning turns into different
+    #: per-case results: pooled, 200 realisations), the share kept from the twins, kept
+    #: apart from the robustness campaign on which the intervals are then checked.
     model_error: tuple["ModelError", ...]
     #: The same for a twin experiment (a trace of emaprog's Reference Model identified with
     #: the very values that produced it: only the Monitor's mismatch is left), calibrated on
@@ -104,7 +106,7 @@ CATALOGUE: tuple[Fault, ...] = (
           (Quantity("friction", None, "-", 1.0, 0.1, 10.0, False, "friction multiplier", "relative",
                     0.05, False),),
           "friction |k_f - 1| [-]", (0.5, 4.0), (0.1, 10.0), 0.019,
-          (ModelError(1.93, 0.02),), (ModelError(0.48, 0.01),)),
+          (ModelError(1.83, 0.01),), (ModelError(0.48, 0.01),)),
     Fault("backlash", "backlash", "scalar",
           (Quantity("backlash", None, "rad", 0.0, 0.0, 0.01, False, "backlash", "absolute", 5e-5,
                     False),),
@@ -113,14 +115,14 @@ CATALOGUE: tuple[Fault, ...] = (
     Fault("short_circuit", "phase short circuit", "per_phase",
           tuple(_phase(x) for x in "abc"),
           "short circuit, worst phase [-]", (0.0, 0.5), (0.0, 0.95), 0.02,
-          (ModelError(1.64, 0.015),) * 3, (ModelError(1.64, 0.015),) * 3),
+          (ModelError(1.78, 0.015),) * 3, (ModelError(1.64, 0.015),) * 3),
     Fault("eccentricity", "rotor static eccentricity", "polar",
           (Quantity("eccentricity_zeta", "zeta", "-", 0.0, 0.0, 1.0, True, "eccentricity zeta",
                     "absolute", 0.05, False),
            Quantity("eccentricity_phase", "phase", "rad", 0.0, 0.0, TWO_PI, False,
                     "eccentricity phase", "absolute", None, True)),
           "eccentricity zeta [-]", (0.0, 0.8), (0.0, 0.95), 0.055,
-          (ModelError(0.74, 0.075), ModelError(2.68)),
+          (ModelError(1.21, 0.05), ModelError(2.68)),
           (ModelError(0.78, 0.05), ModelError(3.15))),
 )
 
