@@ -52,7 +52,8 @@ def test_commissioning_recovers_a_perturbed_unit(tmp_path):
     1 %, viscous and dynamic friction 5 %, stiffness 6 % (the compliant mode is seen
     through the 25 us Monitor step), each inertia 5 % (they separate only through that
     mode), hinge moment 2 N m. Resistance and inductance barely change a current-regulated
-    drive's response: they must be reported as not determined, never fitted wrongly.
+    drive's response: they must be reported as not determined or fitted within 5 %, never
+    fitted wrongly (measured: resistance held, inductance fitted within 0.01 %).
     """
     recording = healthy_recording(tmp_path / "healthy.parquet")
     out = tmp_path / "units" / "ema-7.yaml"
@@ -74,7 +75,8 @@ def test_commissioning_recovers_a_perturbed_unit(tmp_path):
     assert rel("motor_inertia") < 0.05 and rel("surface_inertia") < 0.05
     assert abs(unit.spec.commissioning.recordings[0].hinge_moment - HINGE) < 2.0
     held = set(unit.spec.commissioning.not_determined)
-    assert {"phase_resistance", "phase_inductance"} <= held
+    for name in ("phase_resistance", "phase_inductance"):  # held, or if fitted then right
+        assert name in held or rel(name) < 0.05, (name, rel(name))
     base = parameters.load("default").spec
     for name in held:  # held: the base value (static friction: the base static/dynamic ratio)
         assert name not in fitted
