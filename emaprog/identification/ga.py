@@ -7,12 +7,13 @@ Genes live in the unit box [0, 1]^d. Two strategies (``GAOptions.strategy``):
   *circular*, an angle, wraps around instead of stopping at its bounds); every
   draw comes from one ``numpy.random.Generator`` seeded by the caller, and DEAP
   supplies the individuals, hall of fame, statistics and logbook;
-* ``deap``: DEAP's own toolbox and loop, ``algorithms.eaMuPlusLambda`` with
-  ``selTournament``, ``cxSimulatedBinaryBounded`` and ``mutPolynomialBounded``;
-  DEAP's operators draw from the global :mod:`random` module, which is seeded
-  from the caller's seed for the run and restored afterwards, and the
-  toolbox's ``map`` hands each generation's new individuals to the batched
-  evaluator in one call.
+* ``deap``: DEAP's own toolbox and the loop of ``algorithms.eaMuPlusLambda``
+  (``varOr``, then mu of parents + offspring by ``selTournament``) with
+  ``cxSimulatedBinaryBounded`` and ``mutPolynomialBounded``, written out so that each
+  generation's new individuals go to the batched evaluator in one call and progress
+  is reported; circular genes stay within [0, 1] like the others (the polish works
+  in the plane). DEAP's operators draw from the global :mod:`random` module, which is
+  seeded from the caller's seed for the run and restored afterwards.
 
 Both start from the same Latin hypercube and spend ``population x (generations
 + 1)`` evaluations at most.

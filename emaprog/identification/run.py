@@ -36,7 +36,7 @@ JACOBIAN_STEP = 1e-3
 #: (``benchmarks/rates.py``, 10 regression cases) at 1 kHz: 32 x 20 within SPEC 10 on the
 #: short circuit in 80 % of cases and on zeta in 60 %, 64 x 40 in 90 % and 100 %; at 2 kHz and
 #: above both budgets are level.
-DEFAULT_GA = (32, 20)
+DEFAULT_GA = (GAOptions().population, GAOptions().generations)
 LOW_RATE_GA = (64, 40)
 LOW_RATE = 2500.0
 
