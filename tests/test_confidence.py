@@ -90,7 +90,7 @@ def test_twin_factors_only_for_the_reference_run_with_the_very_same_values(param
     rig = Trace(trace.columns, {**trace.metadata, "model": "recording"})
     assert not is_twin(rig, params) and not is_twin(Trace(trace.columns, None), params)
     assert quantity_error("friction", twin=True).factor < quantity_error("friction").factor
-    assert quantity_error("hinge_moment") == (1.0, 0.0)  # a nuisance: not calibrated
+    assert quantity_error("hinge_moment") == (1.0, 0.0, 0.0)  # a nuisance: not calibrated
 
 
 def test_zeta_interval_of_a_healthy_rotor_covers_zero_90_percent_of_the_time():
@@ -119,6 +119,25 @@ def test_model_error_law_adds_the_signature_share_in_quadrature():
     assert widened(ModelError(1.5, 0.1), 2.0, 40.0) == pytest.approx(5.0)
     assert widened(ModelError(1.5, 0.1), 2.0, 0.0) == pytest.approx(3.0)
     assert widened(ModelError(1.5, 0.1), math.inf, 1.0) == math.inf
+    # the load term adds in quadrature too: sqrt(3^2 + 4^2 + (0.5 x 24)^2) = 13
+    assert widened(ModelError(1.5, 0.1, 0.5), 2.0, 40.0, 24.0) == pytest.approx(13.0)
+
+
+def test_fault_load_counts_each_fault_in_incipient_thresholds():
+    """0 when healthy; a fault at its incipient threshold adds 1 (friction by |k_f - 1|, the
+    worst phase's fraction, zeta, never the eccentricity's angle); arrays work elementwise."""
+    from emaprog.config import parameters
+    from emaprog.faults import CATALOGUE, fault_load, healthy_values
+
+    health = parameters.load("default").spec.health
+    incipient = {f.name: getattr(health, f.name).incipient for f in CATALOGUE}
+    assert fault_load(healthy_values(), incipient) == 0.0
+    values = {**healthy_values(), "friction": 1.0 - incipient["friction"],
+              "short_circuit_b": 2.0 * incipient["short_circuit"],
+              "short_circuit_c": incipient["short_circuit"], "eccentricity_phase": 3.0}
+    assert fault_load(values, incipient) == pytest.approx(3.0)
+    arrays = {k: np.array([v, healthy_values()[k]]) for k, v in values.items()}
+    assert fault_load(arrays, incipient) == pytest.approx([3.0, 0.0])
 
 
 def test_recording_correction_needs_the_same_command_on_the_same_grid():

@@ -279,6 +279,7 @@ def run_case(spec: CaseSpec) -> dict:
         "fitness": float(result.fitness),
         "correction": result.objective.correction.applied,
         "floor_ratio": float(confidence.floor.ratio),
+        "fault_load": float(confidence.fault_load),
         "twin": bool(confidence.twin),
         "isolation_confidence": float(confidence.isolation["confidence"])
         if confidence.isolation else nan,

@@ -27,12 +27,14 @@ Three questions, answered after the optimiser has its estimate:
    sees the noise but not the Monitor's deterministic mismatch with the motor,
    which dominates on clean recordings (measured on the quick campaign: 32-70 %
    coverage as it is). Each quantity's standard error is widened by its
-   :class:`~emaprog.faults.ModelError` law, ``sqrt((factor sigma)^2 + (share d)^2)``
-   with ``d`` the estimate's deviation from healthy (the Monitor's signature error
-   grows with the fault), one law for a twin experiment (:func:`is_twin`: the trace is
-   the Reference Model with this very set) and one for a unit's own set, each
-   calibrated on its own calibration campaign to 90 % coverage on healthy and on
-   faulty truths (``benchmarks/interval_factors.py``). The 90 % interval is
+   :class:`~emaprog.faults.ModelError` law, ``sqrt((factor sigma)^2 + (share d)^2 +
+   (load L)^2)`` with ``d`` the estimate's deviation from healthy (the Monitor's signature
+   error grows with the fault) and ``L`` the recording's fault load (the other faults'
+   signature errors pull this estimate too), one law for a twin experiment
+   (:func:`is_twin`: the trace is the Reference Model with this very set) and one for a
+   unit's own set, each calibrated on its own calibration campaign to 90 % coverage on
+   healthy and on faulty truths and over the range of fault loads
+   (``benchmarks/interval_factors.py``). The 90 % interval is
    ``estimate +- 1.645 sigma`` clipped to the quantity's range (zeta's from 0 when the
    estimate is consistent with a healthy rotor: :func:`quantity_interval`); the
    eccentricity phase gets an arc (the whole circle when the phase is not
@@ -54,7 +56,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..faults import CATALOGUE, FAULTS, PHASE_FAULT, QUANTITIES, ModelError, worst_phase
+from ..faults import (
+    CATALOGUE, FAULTS, PHASE_FAULT, QUANTITIES, ModelError, fault_load, worst_phase,
+)
 from ..kernels.structs import Plant
 from .objective import SIGNALS, Objective, fine_plant
 
@@ -93,6 +97,7 @@ class Confidence(NamedTuple):
     method: str
     twin: bool  # the twin experiment's model-error laws were used (:func:`is_twin`)
     linear_error: dict[str, float]  # the linearised standard errors, before the laws
+    fault_load: float  # the estimate's :func:`~emaprog.faults.fault_load` [-]
 
 
 def noise_sigma(x: np.ndarray, lsb: float) -> float:
@@ -233,10 +238,11 @@ def quantity_error(name: str, twin: bool = False) -> ModelError:
     return ModelError(1.0)
 
 
-def widened(law: ModelError, sigma: float, deviation: float) -> float:
+def widened(law: ModelError, sigma: float, deviation: float, load: float = 0.0) -> float:
     """The standard error of :class:`~emaprog.faults.ModelError` ``law`` for a linearised
-    ``sigma`` and an estimate ``deviation`` from healthy."""
-    return math.hypot(law.factor * sigma, law.share * deviation)
+    ``sigma``, an estimate ``deviation`` from healthy and the recording's fault ``load``
+    (:func:`~emaprog.faults.fault_load`)."""
+    return math.hypot(law.factor * sigma, law.share * deviation, law.load * load)
 
 
 def is_twin(trace, params) -> bool:
@@ -343,6 +349,8 @@ def assess(objective: Objective, trace, values: dict[str, float], fitness: float
         across = math.sqrt(max(float(tangent @ block @ tangent), 0.0)) if finite else math.inf
         linear[PLANE.angle] = across / zeta if zeta > 0 else math.inf
     interval, standard_error = {}, {}
+    load = fault_load(values, {f.name: getattr(health_limits, f.name).incipient
+                               for f in CATALOGUE})
     for name, s in linear.items():
         if name in plane:
             continue
@@ -352,7 +360,7 @@ def assess(objective: Objective, trace, values: dict[str, float], fitness: float
             interval[name] = (values[name] - Z90 * s, values[name] + Z90 * s)
             continue
         deviation = 0.0 if q.circular else abs(values[name] - q.healthy)
-        standard_error[name] = widened(quantity_error(name, twin), s, deviation)
+        standard_error[name] = widened(quantity_error(name, twin), s, deviation, load)
         if q.circular:
             arc = Z90 * standard_error[name]
             interval[name] = ((0.0, 2.0 * math.pi) if arc >= math.pi
@@ -380,15 +388,15 @@ def assess(objective: Objective, trace, values: dict[str, float], fitness: float
     basis = ("twin experiment (the trace is the Reference Model with this very set)" if twin
              else "a unit's own parameter set")
     method = ("linearised (sandwich) covariance of the weighted least-squares fit at the "
-              "estimate, correlated residuals counted by their correlation length, times each "
-              f"quantity's model-error law for {basis}, sqrt((factor sigma)^2 + (share "
-              "deviation from healthy)^2) ("
-              + ", ".join(f"{q.name} {quantity_error(q.name, twin).factor:g}/"
-                          f"{quantity_error(q.name, twin).share:g}"
+              "estimate, correlated residuals counted by their correlation length, widened by "
+              f"each quantity's model-error law for {basis}, sqrt((factor sigma)^2 + (share "
+              "deviation from healthy)^2 + (load fault_load)^2) (factor/share/load: "
+              + ", ".join("{} {:g}/{:g}/{:g}".format(q.name, *quantity_error(q.name, twin))
                           for f in CATALOGUE for q in f.quantities)
-              + "; calibrated on separate calibration campaigns to 90 % coverage)")
+              + f"; fault load {load:.3g}; calibrated on separate calibration campaigns to "
+              "90 % coverage)")
     return Confidence(floor, interval, standard_error, inconclusive, isolation, method, twin,
-                      linear)
+                      linear, load)
 
 
 def _isolation(objective: Objective, values: dict[str, float], fitness: float, samples: int,
@@ -418,6 +426,7 @@ def confidence_record(confidence: Confidence) -> dict:
     return {
         "method": confidence.method,
         "model_error_basis": "twin" if confidence.twin else "unit",
+        "fault_load": confidence.fault_load,
         "noise_floor": {"sigma": floor.sigma, "fitness": floor.fitness, "ratio": floor.ratio,
                         "explained": floor.explained,
                         "rule": f"explained when fitness <= {MAX_FLOOR_RATIO:g} x the floor"},
