@@ -129,16 +129,17 @@ def pooled(parts: list[Cases]) -> Cases:
     return out
 
 
-def fit(cases: Cases) -> tuple[float, float, float]:
+def fit(cases: Cases, factors=FACTORS, shares=SHARES, loads=None) -> tuple[float, float, float]:
     """The grid's (factor, share, load) nearest 90 % on healthy and on faulty truths and on
-    each fault-load quarter (module docstring)."""
-    shares = [0.0] if cases.circular else SHARES
-    loads = LOADS * cases.scale
+    each fault-load quarter (module docstring); ``loads`` default to :data:`LOADS` times
+    the quantity's scale."""
+    shares = [0.0] if cases.circular else shares
+    loads = LOADS * cases.scale if loads is None else loads
     groups, quarters = cases.groups(), cases.quarters()
     best, best_key = (1.0, 0.0, 0.0), (math.inf, math.inf)
     for share in shares:
         for load in loads:
-            for factor in FACTORS:
+            for factor in factors:
                 covered = cases.covered(factor, share, load)
                 loss = sum((covered[g].mean() - TARGET) ** 2 for g in groups if g.any())
                 loss += LOAD_WEIGHT * sum((covered[g].mean() - TARGET) ** 2

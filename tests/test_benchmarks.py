@@ -40,30 +40,40 @@ def test_wilson_interval_closed_form():
 
 
 def test_calibration_recovers_the_law_the_errors_were_drawn_with():
-    """Friction errors drawn normal with sd sqrt((2 sigma)^2 + (0.05 |k_f - 1|)^2), half the
-    cases healthy: the proposed law is factor 2 (within 8 %: the grid's 2.8 % step and the
-    sampling of a 90th percentile over 2000 draws) and share 0.05 (within 0.01); an angle's
-    factor alone likewise, and an angle whose true zeta is below the incipient threshold
-    is not counted."""
+    """Friction errors drawn normal with sd sqrt((2 sigma)^2 + (0.05 d)^2 + (0.001 L)^2), d
+    = |k_f - 1|, L the fault load (a backlash estimate drawn apart makes it vary on its
+    own; the three terms of comparable size), half the cases healthy: among candidate laws
+    around it the calibration picks factor 2 (within 8 %: the grid's 5 % step and the
+    sampling of a 90th percentile over 4000 draws; seeds 0-3 gave 2.0 or 1.9), share 0.05
+    and load 0.001 exactly (their neighbours 0.0375 / 0.0625 and 0.0005 / 0.002 are
+    candidates); an angle's factor likewise, with no load, and an angle whose true zeta is
+    below the incipient threshold is not counted."""
+    from emaprog.faults import QUANTITIES, fault_load
     from interval_factors import Cases, fit
 
     rng = np.random.default_rng(0)
     n = 4000
     sigma = rng.uniform(0.002, 0.01, n)
     true = np.where(np.arange(n) % 2 == 0, 1.0, rng.uniform(1.2, 3.0, n))
-    est = true + rng.normal(0.0, np.hypot(2.0 * sigma, 0.05 * np.abs(true - 1.0)))
-    frame = pd.DataFrame({
-        "true_friction": true, "est_friction": est,
-        "sigma_friction": sigma,
-        "true_eccentricity_zeta": np.full(n, 0.3),
-        "true_eccentricity_phase": np.full(n, 6.2),
-        "est_eccentricity_phase": np.mod(6.2 + rng.normal(0.0, 2.0 * sigma), 2.0 * math.pi),
-        "sigma_eccentricity_phase": sigma,
-    })
-    incipient = {"eccentricity": 0.05}
-    factor, share = fit(Cases(frame, "friction", incipient, twin=True))
-    assert factor == pytest.approx(2.0, rel=0.08) and share == pytest.approx(0.05, abs=0.01)
-    factor, share = fit(Cases(frame, "eccentricity_phase", incipient, twin=True))
-    assert factor == pytest.approx(2.0, rel=0.08) and share == 0.0
+    incipient = {"friction": 0.15, "backlash": 1e-4, "short_circuit": 0.05,
+                 "eccentricity": 0.05}
+    frame = pd.DataFrame({f"est_{q}": np.full(n, v.healthy) for q, v in QUANTITIES.items()})
+    frame["est_backlash"] = rng.uniform(0.0, 1e-3, n)
+    load = fault_load({**{q: frame[f"est_{q}"] for q in QUANTITIES}, "friction": true}, incipient)
+    frame = frame.assign(
+        true_friction=true, sigma_friction=sigma,
+        est_friction=true + rng.normal(0.0, np.sqrt((2.0 * sigma) ** 2 + (
+            0.05 * np.abs(true - 1.0)) ** 2 + (0.001 * load) ** 2)),
+        true_eccentricity_zeta=0.3, true_eccentricity_phase=6.2,
+        est_eccentricity_phase=np.mod(6.2 + rng.normal(0.0, 2.0 * sigma), 2.0 * math.pi),
+        sigma_eccentricity_phase=sigma)
+    factors = np.round(np.geomspace(1.0, 4.0, 29), 3)
+    shares, loads = [0.0, 0.025, 0.0375, 0.05, 0.0625, 0.075], [0.0, 0.0005, 0.001, 0.002]
+    factor, share, coefficient = fit(Cases(frame, "friction", incipient, twin=True),
+                                     factors, shares, loads)
+    assert factor == pytest.approx(2.0, rel=0.08) and share == 0.05 and coefficient == 0.001
+    factor, share, coefficient = fit(Cases(frame, "eccentricity_phase", incipient, twin=True),
+                                     factors, shares, loads)
+    assert factor == pytest.approx(2.0, rel=0.08) and share == 0.0 and coefficient == 0.0
     frame["true_eccentricity_zeta"] = 0.01
     assert Cases(frame, "eccentricity_phase", incipient, twin=True).error.size == 0
