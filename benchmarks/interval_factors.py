@@ -29,6 +29,11 @@ proposed law, and the coverage it gives on each campaign (90 % Wilson interval: 
 cases a perfectly calibrated interval still lands outside 85-95 % about one time in four),
 on healthy and on faulty truths.
 
+The nuisances estimated beside the faults (hinge moment, winding resistance factor) get a
+law the same way, on the unit basis only (twin campaigns do not estimate them), one group
+(their truth is never the default), deviation from their default, their true value in the
+case row (the resistance: the unit's over the set identified with).
+
 Run: ``python benchmarks/interval_factors.py RESULTS_DIR [RESULTS_DIR ...] [--json]``.
 """
 
@@ -44,16 +49,21 @@ import pandas as pd
 from emaprog.config import parameters
 from emaprog.faults import CATALOGUE, QUANTITIES, fault_load
 from emaprog.identification.confidence import Z90, quantity_error, quantity_interval
+from emaprog.identification.objective import NUISANCE_DEFAULTS
 
 from _output import finish, parser  # the sibling module benchmarks/_output.py
 
 TARGET = 0.90
 FACTORS = np.round(np.geomspace(0.2, 8.0, 81), 3)
+#: the nuisances' (their linearised error is an order of magnitude short on spread units)
+NUISANCE_FACTORS = np.round(np.geomspace(0.5, 50.0, 81), 3)
 SHARES = np.round(np.arange(0.0, 0.1001, 0.0025), 4)
 #: load coefficients as a share of the quantity's SPEC 10 tolerance (the phase: of 0.1 rad)
 LOADS = np.concatenate([[0.0], np.geomspace(1e-3, 0.3, 31)])
 LOAD_WEIGHT = 0.5  # of each fault-load quarter in the loss, beside the two truth groups
 PHASE_SCALE = 0.1  # [rad] the eccentricity phase's load scale (it has no tolerance)
+#: [their unit] the nuisances' load scales (no tolerance either)
+NUISANCE_SCALE = {"hinge_moment": 5.0, "resistance_factor": 0.05}
 
 
 def wilson(hits: int, n: int, z: float = Z90) -> tuple[float, float]:
@@ -67,10 +77,13 @@ def wilson(hits: int, n: int, z: float = Z90) -> tuple[float, float]:
 
 
 class Cases:
-    """One quantity's rows: |error|, linearised sigma, deviation from healthy, fault load."""
+    """One quantity's rows: |error|, linearised sigma, deviation from healthy, fault load.
+    A nuisance (hinge moment, resistance factor) counts where it was estimated, its
+    deviation from its default; its interval is plain ``estimate +- 1.645 se``."""
 
     def __init__(self, frame: pd.DataFrame, name: str, incipient: dict[str, float], twin: bool):
-        q = QUANTITIES[name]
+        q = QUANTITIES.get(name)
+        healthy = NUISANCE_DEFAULTS[name] if q is None else q.healthy
         est = frame[f"est_{name}"].to_numpy(float)
         true = frame[f"true_{name}"].to_numpy(float)
         if f"sigma_{name}" not in frame:
@@ -78,7 +91,7 @@ class Cases:
                              "standard errors were stored; run it again")
         sigma = frame[f"sigma_{name}"].to_numpy(float)
         load = fault_load({n: frame[f"est_{n}"].to_numpy(float) for n in QUANTITIES}, incipient)
-        if q.circular:
+        if q is not None and q.circular:
             fault = next(f for f in CATALOGUE if name in {x.name for x in f.quantities})
             severity = np.max([np.abs(frame[f"true_{m.name}"].to_numpy(float) - m.healthy)
                                for m in fault.magnitudes], axis=0)
@@ -86,16 +99,18 @@ class Cases:
             error = np.abs(np.remainder(true - est + math.pi, 2.0 * math.pi) - math.pi)
             deviation = np.zeros_like(est)
         else:
-            keep = np.ones(len(frame), bool)
+            keep = np.isfinite(est) & np.isfinite(true) & np.isfinite(sigma)
             error = np.abs(true - est)
-            deviation = np.abs(est - q.healthy)
-        faulty = np.abs(true - q.healthy) > 0.0
+            deviation = np.abs(est - healthy)
+        self.nuisance, self.circular = q is None, q is not None and q.circular
+        one_group = self.nuisance or self.circular
+        faulty = np.ones(len(frame), bool) if one_group else np.abs(true - healthy) > 0.0
         self.error, self.sigma, self.deviation = error[keep], sigma[keep], deviation[keep]
         self.load = load[keep]
         self.name, self.estimate, self.true = name, est[keep], true[keep]
-        self.faulty = (faulty if not q.circular else np.ones(len(frame), bool))[keep]
-        self.circular = q.circular
-        self.scale = PHASE_SCALE if q.tolerance is None else q.tolerance
+        self.faulty = faulty[keep]
+        self.scale = (NUISANCE_SCALE[name] if q is None
+                      else PHASE_SCALE if q.tolerance is None else q.tolerance)
 
     def se(self, factor: float, share: float, load: float) -> np.ndarray:
         return np.sqrt((factor * self.sigma) ** 2 + (share * self.deviation) ** 2
@@ -108,12 +123,14 @@ class Cases:
         se = self.se(factor, share, load)
         if self.circular:
             return np.where(np.isfinite(se), self.error <= Z90 * se, True)
+        if self.nuisance:
+            return self.error <= Z90 * se
         low, high = quantity_interval(self.name, self.estimate, se)
         return (self.true >= low - 1e-12) & (self.true <= high + 1e-12)
 
     def groups(self) -> list[np.ndarray]:
-        """Healthy and faulty truths (the angle: one group)."""
-        return [self.faulty] if self.circular else [~self.faulty, self.faulty]
+        """Healthy and faulty truths (the angle, a nuisance: one group)."""
+        return [self.faulty] if self.circular or self.nuisance else [~self.faulty, self.faulty]
 
     def quarters(self) -> list[np.ndarray]:
         """The cases in four equal parts by fault load."""
@@ -125,7 +142,8 @@ def pooled(parts: list[Cases]) -> Cases:
     out = object.__new__(Cases)
     for field in ("error", "sigma", "deviation", "faulty", "estimate", "true", "load"):
         setattr(out, field, np.concatenate([getattr(p, field) for p in parts]))
-    out.circular, out.name, out.scale = parts[0].circular, parts[0].name, parts[0].scale
+    out.circular, out.nuisance = parts[0].circular, parts[0].nuisance
+    out.name, out.scale = parts[0].name, parts[0].scale
     return out
 
 
@@ -165,9 +183,14 @@ def calibrate(directories: list[Path]) -> list[dict]:
     for twin in (True, False):
         chosen = {d: f[f["twin"] == twin] for d, f in frames.items()}
         chosen = {d: f for d, f in chosen.items() if len(f)}
-        for name in QUANTITIES if chosen else ():
+        estimated = [n for n in NUISANCE_DEFAULTS
+                     if any(f"sigma_{n}" in f and f[f"sigma_{n}"].notna().any()
+                            for f in chosen.values())]
+        for name in [*QUANTITIES, *estimated] if chosen else ():
             per = {d: Cases(f, name, incipient, twin) for d, f in chosen.items()}
-            law = fit(pooled(list(per.values())))
+            per = {d: c for d, c in per.items() if c.error.size}
+            law = fit(pooled(list(per.values())),
+                      NUISANCE_FACTORS if name in NUISANCE_DEFAULTS else FACTORS)
             rows.append(_row(name, twin, law, per))
     return rows
 

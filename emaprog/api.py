@@ -10,6 +10,7 @@ their cases: that is what makes them resumable). Errors in user input raise
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal, NamedTuple
@@ -298,6 +299,9 @@ def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = 
                             if q in result.confidence.interval else None for q in QUANTITIES}),
         f"{PHASE_FAULT}_phase": worst_phase(result.estimate),
         "nuisance": {name: result.estimate[name] for name in settings.nuisances},
+        "nuisance_interval": {name: [x if math.isfinite(x) else None
+                                     for x in result.confidence.interval[name]]
+                              for name in settings.nuisances},
         "fitness": result.fitness,
         "confidence": confidence_record(result.confidence),
         "correction": {"applied": result.objective.correction.applied,

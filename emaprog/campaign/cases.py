@@ -290,6 +290,13 @@ def run_case(spec: CaseSpec) -> dict:
         "true_hinge_moment": float(spec.hinge_moment),
         **{f"est_{name}": float(result.estimate[name]) if name in spec.settings.nuisances
            else float("nan") for name in NUISANCE_DEFAULTS},
+        **{f"{column}_{name}": float(errors.get(name, float("nan")))
+           for name in NUISANCE_DEFAULTS
+           for column, errors in (("se", confidence.standard_error),
+                                  ("sigma", confidence.linear_error))},
+        # the winding resistance the identification should find, over the set it uses
+        "true_resistance_factor": float(unit.spec.electrical.phase_resistance
+                                        / params.spec.electrical.phase_resistance),
     })
     if spec.commission is not None:
         row.update(commission_row, commission_s=commissioned - simulated)

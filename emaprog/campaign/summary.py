@@ -14,6 +14,7 @@ import pandas as pd
 
 from ..faults import CATALOGUE, FAULT_NAMES, PHASE_FAULT, PHASES, QUANTITIES
 from ..config.parameters import Parameters
+from ..identification.confidence import Z90
 
 PHASE_NAMES = (*PHASES, "none")
 
@@ -196,11 +197,26 @@ def _commissioning(frame: pd.DataFrame) -> dict | None:
 
 
 def _nuisance(frame: pd.DataFrame) -> dict | None:
-    """|estimated - true| hinge moment [N m] over the cases that estimated it, or None."""
-    if "est_hinge_moment" not in frame or not np.isfinite(frame["est_hinge_moment"]).any():
-        return None
-    error = frame["est_hinge_moment"].to_numpy(float) - frame["true_hinge_moment"].to_numpy(float)
-    return {"hinge_moment": _spread(error)}
+    """Per nuisance estimated, with its truth in the rows: |estimated - true| (hinge moment
+    [N m], resistance factor [-]) and, where the rows carry its standard error, how often
+    its 90 % interval ``estimate +- 1.645 se`` holds the truth and its median width; None
+    when no nuisance was estimated."""
+    out = {}
+    for name in ("hinge_moment", "resistance_factor"):
+        if f"est_{name}" not in frame or f"true_{name}" not in frame:
+            continue
+        est = frame[f"est_{name}"].to_numpy(float)
+        error = est - frame[f"true_{name}"].to_numpy(float)
+        keep = np.isfinite(error)
+        if not keep.any():
+            continue
+        out[name] = _spread(error[keep])
+        if f"se_{name}" in frame:
+            half = Z90 * frame[f"se_{name}"].to_numpy(float)[keep]
+            out[name].update(coverage=_rate(int(np.sum(np.abs(error[keep]) <= half)),
+                                            int(keep.sum())),
+                             median_width=float(np.median(2.0 * half)))
+    return out or None
 
 
 def regression_figures(summary: dict) -> dict[str, tuple[float | None, str]]:
@@ -337,8 +353,13 @@ def _commissioning_markdown(summary: dict) -> str:
                       "recording: |commissioned / true - 1| per parameter (hinge moment: |error| "
                       "[N m]).\n\n| parameter | n | median | p95 | max |\n|---|---|---|---|---|\n"
                       + rows + "\n\n")
-    if summary.get("nuisance"):
-        s = summary["nuisance"]["hinge_moment"]
-        blocks.append(f"Hinge moment estimated as a nuisance: |error| median {_cell(s['median'])}, "
-                      f"p95 {_cell(s['p95'])}, max {_cell(s['max'])} N m over {s['n']} cases.\n\n")
+    for name, s in (summary.get("nuisance") or {}).items():
+        label, unit = {"hinge_moment": ("Hinge moment", " N m"),
+                       "resistance_factor": ("Resistance factor", "")}[name]
+        held = ("" if s.get("coverage") is None else
+                f"; its 90 % interval held the truth in {_cell(s['coverage'], '{:.0%}')} "
+                f"(median width {_cell(s['median_width'])}{unit})")
+        blocks.append(f"{label} estimated as a nuisance: |error| median {_cell(s['median'])}, "
+                      f"p95 {_cell(s['p95'])}, max {_cell(s['max'])}{unit} over {s['n']} cases"
+                      f"{held}.\n\n")
     return "".join(blocks)
