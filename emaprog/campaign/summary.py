@@ -15,6 +15,7 @@ import pandas as pd
 from ..faults import CATALOGUE, FAULT_NAMES, PHASE_FAULT, PHASES, QUANTITIES
 from ..config.parameters import Parameters
 from ..identification.confidence import Z90
+from ..identification.objective import NUISANCE_DEFAULTS
 
 PHASE_NAMES = (*PHASES, "none")
 
@@ -202,7 +203,7 @@ def _nuisance(frame: pd.DataFrame) -> dict | None:
     its 90 % interval ``estimate +- 1.645 se`` holds the truth and its median width; None
     when no nuisance was estimated."""
     out = {}
-    for name in ("hinge_moment", "resistance_factor"):
+    for name in NUISANCE_DEFAULTS:
         if f"est_{name}" not in frame or f"true_{name}" not in frame:
             continue
         est = frame[f"est_{name}"].to_numpy(float)
