@@ -28,8 +28,10 @@ from .errors import InputError
 from .faults import PHASE_FAULT, QUANTITIES, flatten, nested, worst_phase
 from .identification import check_sampling, identify_trace
 from .identification.confidence import confidence_record
+from .identification.defaults import resolve as resolve_settings
 from .identification.objective import low_pass
 from .identification import result as verdicts
+from .io.recordings import check_at_rest
 from .io.storage import Trace, frame_of, read_trace, trace_of, write_json, write_trace
 from .models import monitor, reference
 from .models.common import inputs_from_trace
@@ -167,11 +169,15 @@ class Commissioned:
 
 def _measured(path: Path, columns: str | Path | None, params: Parameters | None) -> Trace:
     """A contract trace file, or with a column map a rig recording read through it."""
-    if columns is None:
-        return read_trace(path)
     from .io.recordings import load_column_map, read_recording
 
-    return read_recording(path, load_column_map(columns), params, columns)
+    if columns is None:
+        trace = read_trace(path)
+    else:
+        trace = read_recording(path, load_column_map(columns), params, columns)
+    if params is not None:
+        check_at_rest(trace, params, path)
+    return trace
 
 
 def _commissioning_residuals(params: Parameters) -> list:
@@ -247,7 +253,7 @@ def commission(recordings: list[str | Path], output: str | Path, *,
 def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = None,
              parameters: str | Path | None = None, columns: str | Path | None = None,
              output: str | Path | None = None, inspection: dict | None = None,
-             show_progress: bool = False) -> Report:
+             nuisances: list[str] | None = None, show_progress: bool = False) -> Report:
     """Identify the faults in a measured trace (a Parquet path or a DataFrame).
 
     Settings come from ``scenario`` when given, else from the scenario embedded in
@@ -255,7 +261,11 @@ def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = 
     (it overrides), else from that same scenario, else ``default``. Truth and
     error are reported when the trace carries its scenario (a simulated trace).
     ``inspection`` ({"actuator": ID, "usage": hours}) tags the report for
-    ``emaprog trend``. ``columns`` (a column map YAML) reads ``trace`` as a rig
+    ``emaprog trend``. ``nuisances`` overrides ``identify.nuisances`` (omitted there: the
+    hinge moment and resistance factor for a real unit, none for a twin experiment;
+    :mod:`emaprog.identification.defaults`). A scenario's ``load`` applies to a trace that
+    carries it or, for a recording, only when the hinge moment is not estimated (the
+    report's ``load`` says which). ``columns`` (a column map YAML) reads ``trace`` as a rig
     recording (CSV, MATLAB .mat, foreign Parquet; :mod:`emaprog.io.recordings`).
     With ``output``, report.json, report.md and the figures are written there.
     """
@@ -278,10 +288,13 @@ def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = 
         relative = source.parent if isinstance(source, Path) else None
         params = _parameters(parameters, embedded.parameters if embedded else None, relative,
                              f"{source} (embedded scenario)")
-    settings = basis.identify if basis is not None else IdentifySettings()
+    resolved = resolve_settings(basis.identify if basis is not None else IdentifySettings(),
+                                measured.metadata, params, nuisances)
+    settings = resolved.settings
     check_sampling(measured, str(source))
-    inp = inputs_from_trace(measured, params.spec.controller.rate,
-                            basis.load if basis is not None else None)
+    check_at_rest(measured, params, source)
+    load, load_note = _load_of(embedded, chosen, settings)
+    inp = inputs_from_trace(measured, params.spec.controller.rate, load)
     recordings = (_commissioning_residuals(params) if settings.nominal_correction == "recording"
                   else [])
     result = identify_trace(measured, inp, params, settings, show_progress=show_progress,
@@ -289,23 +302,31 @@ def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = 
 
     truth = flatten(embedded.faults) if embedded is not None else None
     error = verdicts.errors(result.estimate, truth) if truth is not None else None
+    health = verdicts.health(result.estimate, settings.estimate, params,
+                             result.confidence.inconclusive)
+    flagged = health.get(PHASE_FAULT) in ("incipient", "degraded")
+    confidence = confidence_record(result.confidence)
+    if not flagged:  # a phase is named, with its confidence, only beside a flagged short
+        confidence["isolation"] = None
     data = {
         "estimate": nested(result.estimate),
         "truth": nested(truth) if truth is not None else None,
         "error": nested(error) if error is not None else None,
-        "health": verdicts.health(result.estimate, settings.estimate, params,
-                                  result.confidence.inconclusive),
+        "health": health,
         "interval": nested({q: list(result.confidence.interval[q])
                             if q in result.confidence.interval else None for q in QUANTITIES}),
-        f"{PHASE_FAULT}_phase": worst_phase(result.estimate),
+        f"{PHASE_FAULT}_phase": worst_phase(result.estimate) if flagged else None,
         "nuisance": {name: result.estimate[name] for name in settings.nuisances},
         "nuisance_interval": {name: [x if math.isfinite(x) else None
                                      for x in result.confidence.interval[name]]
                               for name in settings.nuisances},
         "fitness": result.fitness,
-        "confidence": confidence_record(result.confidence),
+        "confidence": confidence,
         "correction": {"applied": result.objective.correction.applied,
                        "note": result.objective.correction.note},
+        "load": {"applied": load.model_dump(mode="json") if load is not None else None,
+                 "note": load_note},
+        "defaults": resolved.notes,
         "ga": {"estimate": nested(result.ga_estimate), "fitness": result.ga_fitness,
                "generations": result.generations, "stopped_by": result.stopped_by,
                "refined": result.refined, "logbook": result.logbook},
@@ -319,6 +340,7 @@ def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = 
         "inspection": inspection,
         "emaprog_version": __version__,
     }
+    _name_phases_as_recorded(data, (measured.metadata or {}).get("phase_identity"))
     if output is None:
         return Report.from_data(data)
     from .report import plot_convergence, plot_fit, report_markdown
@@ -339,6 +361,56 @@ def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = 
     write_json(folder / "report.json", data)
     (folder / "report.md").write_text(report_markdown(data))
     return Report.from_data(data, folder)
+
+
+def _name_phases_as_recorded(data: dict, identity: dict | None) -> None:
+    """Name the windings as the recording does: the models' winding x is the recording's
+    ``identity["windings"][x]`` (docs/reference.md, "Phase identity"). The report's
+    per-phase values, the named phase and its isolation are renamed in place;
+    ``phase_identity`` and ``phase_channels`` (recording phase -> logger column) added."""
+    if identity is None:
+        return
+    data["phase_identity"] = identity
+    if not identity["trusted"]:
+        data["phase_identity"]["note"] = (
+            f"the recorded phase currents could not be matched to the model's windings "
+            f"(agreement {identity['agreement']:.2f}, runner-up {identity['runner_up']:.2f}): "
+            "phases are named by the model's convention")
+        return
+    rename = {w: key.removeprefix("current_") for w, key in identity["windings"].items()}
+    data["phase_channels"] = {rename[w]: identity["channels"][w] for w in rename}
+    if all(rename[w] == w for w in rename):
+        return
+    for tree in (data["estimate"], data["interval"], data["ga"]["estimate"]):
+        if isinstance(tree.get(PHASE_FAULT), dict):
+            renamed = {rename[w]: v for w, v in tree[PHASE_FAULT].items()}
+            tree[PHASE_FAULT] = {w: renamed[w] for w in sorted(renamed)}
+    if data.get(f"{PHASE_FAULT}_phase"):
+        data[f"{PHASE_FAULT}_phase"] = rename[data[f"{PHASE_FAULT}_phase"]]
+    isolation = data["confidence"].get("isolation")
+    if isolation:
+        isolation["phase"], isolation["runner_up"] = (rename[isolation["phase"]],
+                                                      rename[isolation["runner_up"]])
+    errors = data["confidence"]["standard_error"]
+    moved = {f"{PHASE_FAULT}_{rename[w]}": errors.get(f"{PHASE_FAULT}_{w}") for w in rename}
+    errors.update({k: v for k, v in moved.items() if k in errors or v is not None})
+
+
+def _load_of(embedded: Scenario | None, chosen: Scenario | None, settings: IdentifySettings):
+    """The load the Monitor is driven with, and why: the trace's own scenario's (a simulated
+    trace knows its load); for a recording, a ``--scenario``'s only when the hinge moment is
+    not estimated (a scenario given for its settings never adds a load silently)."""
+    if embedded is not None:
+        return embedded.load, "the trace's own scenario"
+    if chosen is None or chosen.load.kind == "none":
+        return None, ("none: the recording's hinge moment is estimated (nuisance hinge_moment)"
+                      if "hinge_moment" in settings.nuisances else
+                      "none (no scenario load; hinge moment not estimated)")
+    if "hinge_moment" in settings.nuisances:
+        return None, (f"the scenario's {chosen.load.kind} load is not applied to the recording: "
+                      "its hinge moment is estimated (nuisance hinge_moment); to state a known "
+                      "load instead, identify with --nuisances none or resistance_factor")
+    return chosen.load, "the --scenario's load, stated for this recording"
 
 
 def verdict_text(report: Report) -> str:

@@ -189,6 +189,10 @@ def identify(
         "--usage", min=0.0, help="Its usage at the recording [flight hours] (for `emaprog trend`).")] = None,
     parameters: ParametersOverride = None,
     columns: ColumnsOption = None,
+    nuisances: Annotated[Optional[str], typer.Option(
+        "--nuisances", help="Operating conditions to estimate beside the faults: a comma list "
+        "of hinge_moment, resistance_factor, or none. Default: both for a real unit (a rig "
+        "recording or a commissioned unit's set), none for a twin experiment.")] = None,
 ):
     """Identify fault magnitudes in a measured trace with the GA over the Monitor Model."""
     from . import api
@@ -199,9 +203,26 @@ def identify(
     inspection = {"actuator": actuator, "usage": usage} if actuator is not None else None
     report = api.identify(trace, scenario=scenario, parameters=parameters, columns=columns,
                           output=output or Path("out") / f"{trace.stem}-report",
-                          inspection=inspection, show_progress=True)
+                          inspection=inspection, nuisances=_nuisance_list(nuisances),
+                          show_progress=True)
     typer.echo(api.verdict_text(report))
     typer.echo(f"report: {report.folder / 'report.md'}")
+
+
+def _nuisance_list(text: str | None) -> list[str] | None:
+    """``--nuisances`` as a list (None: not given)."""
+    from .identification.objective import NUISANCE_DEFAULTS
+
+    if text is None:
+        return None
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    if names == ["none"]:
+        return []
+    unknown = [n for n in names if n not in NUISANCE_DEFAULTS]
+    if unknown or not names:
+        raise InputError("--nuisances", f"unknown operating condition '{(unknown or [text])[0]}' "
+                         f"(allowed: a comma list of {', '.join(NUISANCE_DEFAULTS)}, or none)")
+    return list(dict.fromkeys(names))
 
 
 @app.command(epilog="Example: emaprog calibrate -o out/calibration")

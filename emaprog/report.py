@@ -129,7 +129,9 @@ def identification_summary(report: dict) -> str:
     phase = report.get(f"{PHASE_FAULT}_phase")
     if report["health"].get(PHASE_FAULT) in ("incipient", "degraded") and phase:
         isolation = report["confidence"]["isolation"]
+        channel = (report.get("phase_channels") or {}).get(phase)
         lines.append(f"{FAULTS[PHASE_FAULT].label} on phase {phase.upper()}"
+                     + (f" (logger channel {channel})" if channel else "")
                      + (f" (confidence {isolation['confidence']:.0%})" if isolation else ""))
     for fault, why in report["confidence"]["inconclusive"].items():
         lines.append(f"{fault} inconclusive: {why}")
@@ -145,9 +147,42 @@ def identification_summary(report: dict) -> str:
             line += (f"   (true {_fmt(_pick(report['truth'], keys), fmt)}, "
                      f"error {_fmt(_pick(report['error'], keys), fmt)})")
         lines.append(line)
+    lines += [f"  {line}" for line in _operating_lines(report)]
     lines.append(f"fitness {report['fitness']:.3e} after {report['evaluations']} Monitor runs "
                  f"in {report['elapsed_s']:.1f} s")
     return "\n".join(lines)
+
+
+#: Operating conditions estimated beside the faults: label, unit, format.
+NUISANCE_ROWS = {"hinge_moment": ("hinge moment", "N m", "{:.1f}"),
+                 "resistance_factor": ("winding resistance factor", "-", "{:.3f}")}
+
+
+def _operating_lines(report: dict) -> list[str]:
+    """The estimated operating conditions (nuisances) with their intervals, one line each."""
+    lines = []
+    for name, value in (report.get("nuisance") or {}).items():
+        label, unit, fmt = NUISANCE_ROWS[name]
+        low, high = (report.get("nuisance_interval") or {}).get(name) or (None, None)
+        shown = "" if low is None or high is None else f" [{fmt.format(low)}, {fmt.format(high)}]"
+        lines.append(f"{label:20s} {fmt.format(value) + shown:>32s} {unit} (operating condition)")
+    return lines
+
+
+def _phase_sentence(report: dict) -> str:
+    """Which phase is shorted, only when a short circuit is flagged (incipient or degraded)."""
+    if report["health"].get(PHASE_FAULT) not in ("incipient", "degraded"):
+        return "No short circuit flagged: no faulty phase named."
+    phase = report.get(f"{PHASE_FAULT}_phase")
+    isolation = report["confidence"]["isolation"]
+    channel = (report.get("phase_channels") or {}).get(phase)
+    named = f"{phase.upper()}" + (f" (logger channel `{channel}`)" if channel else "")
+    sentence = f"Faulty phase (largest shorted fraction): {named}."
+    if isolation is not None:
+        sentence += (f" Confidence in phase {isolation['phase'].upper()} against phase "
+                     f"{isolation['runner_up'].upper()}: {isolation['confidence']:.1%} "
+                     f"(chi-square difference {isolation['delta_chi2']:.3g}).")
+    return sentence
 
 
 def report_markdown(report: dict) -> str:
@@ -169,12 +204,18 @@ def report_markdown(report: dict) -> str:
     health = "\n".join(f"| {fault} | {verdict} | {reasons.get(fault, '')} |"
                        for fault, verdict in report["health"].items())
     floor = confidence["noise_floor"]
-    isolation = confidence["isolation"]
-    isolated = ("" if isolation is None else
-                f" Confidence in phase {isolation['phase'].upper()} against phase "
-                f"{isolation['runner_up'].upper()}: {isolation['confidence']:.1%} "
-                f"(chi-square difference {isolation['delta_chi2']:.3g}).")
     ga = report["ga"]
+    operating = ""
+    if report.get("nuisance"):
+        operating = ("\n## Operating conditions (estimated, no verdict)\n\n| condition | unit | "
+                     "estimate | 90 % interval |\n|---|---|---|---|\n")
+        for name, value in report["nuisance"].items():
+            label, unit, fmt = NUISANCE_ROWS[name]
+            low, high = (report.get("nuisance_interval") or {}).get(name) or (None, None)
+            interval = "—" if low is None or high is None else f"[{fmt.format(low)}, {fmt.format(high)}]"
+            operating += f"| {label} | {unit} | {fmt.format(value)} | {interval} |\n"
+    load = report.get("load") or {}
+    load_line = f"\nLoad applied to the model: {load['note']}.\n" if load.get("note") else ""
     return f"""# Fault identification: {report['scenario'] or report['trace']}
 
 Trace `{report['trace']}`, parameter set `{report['parameters']}`, emaprog {report['emaprog_version']}.
@@ -185,7 +226,7 @@ Trace `{report['trace']}`, parameter set `{report['parameters']}`, emaprog {repo
 |---|---|---|
 {health}
 
-Faulty phase (largest shorted fraction): {report[f'{PHASE_FAULT}_phase'] or 'none'}.{isolated}
+{_phase_sentence(report)}
 
 Fit quality: fitness {report['fitness']:.3e} is {floor['ratio']:.2f} x the recording's noise
 floor ({floor['fitness']:.3e}); {'explained' if floor['explained'] else 'NOT explained'}
@@ -196,7 +237,7 @@ floor ({floor['fitness']:.3e}); {'explained' if floor['explained'] else 'NOT exp
 {head}
 {rule}
 {chr(10).join(rows)}
-
+{operating}{load_line}
 Fitness {report['fitness']:.4e} (GA best {ga['fitness']:.4e}; refined: {ga['refined']}).
 {ga['generations']} generations (stopped by {ga['stopped_by']}), {report['evaluations']} Monitor
 Model runs, {report['elapsed_s']:.2f} s, GA seed {report['seed']}.

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .config.scenario import (
@@ -56,3 +58,34 @@ def load(spec, t: np.ndarray) -> tuple[np.ndarray, float]:
     if isinstance(spec, SpringLoad):
         return np.full_like(t, spec.torque), float(spec.stiffness)
     raise TypeError(f"unknown load {spec!r}")
+
+
+def noise_sigma(x: np.ndarray, lsb: float) -> float:
+    """Standard deviation of a signal's white noise, from the signal itself [its unit].
+
+    The second difference removes what is slow (a 10 Hz chirp moves the
+    position by 2e-6 rad between 0.1 ms samples) and multiplies white noise's
+    variance by 6; the median absolute value (x 1.4826) ignores the steps at
+    commutations. The ADC's rounding (``lsb^2 / 12``) is the least noise a
+    recorded signal can carry.
+    """
+    x = np.asarray(x, dtype=np.float64)
+    if x.size < 3:
+        return lsb / math.sqrt(12.0)
+    d2 = x[2:] - 2.0 * x[1:-1] + x[:-2]
+    sigma = 1.4826 * float(np.median(np.abs(d2))) / math.sqrt(6.0)
+    return math.sqrt(sigma ** 2 + lsb ** 2 / 12.0)
+
+
+def command_start(time: np.ndarray, command: np.ndarray) -> float:
+    """When the command leaves its first value [s after the first sample]: the end of a
+    pre-roll at rest (0 when the command moves from the start). The last sample still at
+    the first value before it departs by 0.1 % of the command's range."""
+    span = float(np.ptp(command))
+    if span <= 0.0:
+        return 0.0
+    away = np.flatnonzero(np.abs(command - command[0]) > 1e-3 * span)
+    if away.size == 0:
+        return 0.0
+    still = np.flatnonzero(np.abs(command[: away[0]] - command[0]) <= 1e-9 * span + 1e-15)
+    return float(time[still[-1]] - time[0]) if still.size else 0.0

@@ -46,6 +46,7 @@ from ..faults import (
     CATALOGUE, FAULT_NAMES, PHASE_FAULT, PHASES, QUANTITIES, Fault, flatten, worst_phase,
 )
 from ..identification import identify_trace
+from ..identification.defaults import resolve as resolve_settings
 from ..identification.objective import NUISANCE_DEFAULTS, ResidualRecording, recording_residual
 from ..identification import result as verdicts
 from ..models import reference
@@ -247,7 +248,10 @@ def run_case(spec: CaseSpec) -> dict:
         recordings = [residual]
     commissioned = time.perf_counter()
     inp = inputs(spec.scenario, params)
-    result = identify_trace(trace, inp, params, spec.settings, show_progress=False,
+    settings = resolve_settings(spec.settings, trace.metadata, params,
+                                real_unit=spec.unit is not None or spec.commission is not None
+                                ).settings
+    result = identify_trace(trace, inp, params, settings, show_progress=False,
                             recordings=recordings)
     truth = flatten(spec.scenario.faults)
     error = verdicts.errors(result.estimate, truth)
@@ -288,7 +292,7 @@ def run_case(spec: CaseSpec) -> dict:
         "simulate_s": simulated - start,
         "identify_s": result.elapsed_s,
         "true_hinge_moment": float(spec.hinge_moment),
-        **{f"est_{name}": float(result.estimate[name]) if name in spec.settings.nuisances
+        **{f"est_{name}": float(result.estimate[name]) if name in settings.nuisances
            else float("nan") for name in NUISANCE_DEFAULTS},
         **{f"{column}_{name}": float(errors.get(name, float("nan")))
            for name in NUISANCE_DEFAULTS

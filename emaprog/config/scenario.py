@@ -224,15 +224,18 @@ class IdentifySettings(Strict):
                              description="[rad/s] motor speed above which samples are left "
                                          "out of the error; omitted: 40 % of the DC bus as "
                                          "pair back-EMF")] = None
-    nuisances: list[NuisanceName] = Field(
-        default_factory=list, description="operating conditions estimated beside the faults and "
-                                          "reported under `nuisance`, never given a verdict")
+    nuisances: Optional[list[NuisanceName]] = Field(
+        None, description="operating conditions estimated beside the faults and reported under "
+                          "`nuisance`, never given a verdict; omitted: both for a real unit (a "
+                          "rig recording, or a commissioned unit's set), none for a twin "
+                          "experiment (emaprog.identification.defaults)")
     nuisance_bounds: NuisanceBounds = NuisanceBounds()
-    nominal_correction: Literal["reference", "recording", "none"] = Field(
-        "reference", description="what is subtracted from the measured signals before fitting: "
+    nominal_correction: Optional[Literal["reference", "recording", "none"]] = Field(
+        None, description="what is subtracted from the measured signals before fitting: "
                                  "the healthy Reference-Monitor difference with the set in use, "
                                  "the unit's commissioning recording's residual, or nothing "
-                                 "(true/false: reference/none)")
+                                 "(true/false: reference/none); omitted: chosen by the recording "
+                                 "(emaprog.identification.defaults)")
 
     @field_validator("nominal_correction", mode="before")
     @classmethod

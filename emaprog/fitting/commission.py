@@ -41,6 +41,7 @@ from ..identification.confidence import correlation_length, information_inverse
 from ..identification.objective import (
     FILTER_SECONDS, STARTUP_SECONDS, filter_lag, fine_plant, low_pass,
 )
+from ..io.recordings import derived_speed
 from ..io.storage import Trace
 from ..kernels.monitor import simulate_monitor
 from ..kernels.structs import MonitorOutputs, Plant
@@ -99,6 +100,7 @@ class Recording(NamedTuple):
     measured: tuple[np.ndarray, np.ndarray, np.ndarray]  # 1 ms means: current, position, speed
     scales: np.ndarray  # (3,) RMS of each measured signal over the fitted samples
     mask: np.ndarray  # (n_rec,) bool: samples in the fit (after the start-up window)
+    speed_from_position: bool = False  # the speed was derived from the position (rig recording)
 
 
 class Fit(NamedTuple):
@@ -142,7 +144,8 @@ def prepare(trace: Trace, source: str, params: Parameters) -> Recording:
     mask = np.ones(trace.time.size, bool)
     mask[: round(STARTUP_SECONDS * recording_rate)] = False
     scales = np.array([max(float(np.sqrt(np.mean(m[mask] ** 2))), 1e-12) for m in measured])
-    return Recording(source, trace, inputs, instants, measured, scales, mask)
+    derived = str((trace.metadata or {}).get("speed", "")).startswith("derived from position")
+    return Recording(source, trace, inputs, instants, measured, scales, mask, derived)
 
 
 class _Problem:
@@ -189,8 +192,12 @@ class _Problem:
         n = recording.inputs.time.size
         out = MonitorOutputs(np.empty(n), np.empty(n), np.empty(n), np.empty(n))
         simulate_monitor(recording.inputs.drive(hinge), plant, self.faults, self.options, out)
+        speed = out.speed
+        if recording.speed_from_position:  # the same derivative as the recording's speed
+            speed = derived_speed(recording.inputs.time,
+                                  self.params.spec.mechanical.gear_ratio * out.position)
         return [recording.instants.sample(low_pass(signal, self.width))
-                for signal in (out.current, out.position, out.speed)]
+                for signal in (out.current, out.position, speed)]
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         self.evaluations += 1

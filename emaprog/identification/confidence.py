@@ -60,6 +60,7 @@ from ..faults import (
     CATALOGUE, FAULTS, PHASE_FAULT, QUANTITIES, ModelError, fault_load, worst_phase,
 )
 from ..kernels.structs import Plant
+from ..signals import noise_sigma
 from .objective import NUISANCE_DEFAULTS, SIGNALS, Objective, fine_plant
 
 Z90 = 1.6448536269514722  # two-sided 90 % quantile of the normal distribution
@@ -106,23 +107,6 @@ class Confidence(NamedTuple):
     twin: bool  # the twin experiment's model-error laws were used (:func:`is_twin`)
     linear_error: dict[str, float]  # the linearised standard errors, before the laws
     fault_load: float  # the estimate's :func:`~emaprog.faults.fault_load` [-]
-
-
-def noise_sigma(x: np.ndarray, lsb: float) -> float:
-    """Standard deviation of a signal's white noise, from the signal itself [its unit].
-
-    The second difference removes what is slow (a 10 Hz chirp moves the
-    position by 2e-6 rad between 0.1 ms samples) and multiplies white noise's
-    variance by 6; the median absolute value (x 1.4826) ignores the steps at
-    commutations. The ADC's rounding (``lsb^2 / 12``) is the least noise a
-    recorded signal can carry.
-    """
-    x = np.asarray(x, dtype=np.float64)
-    if x.size < 3:
-        return lsb / math.sqrt(12.0)
-    d2 = x[2:] - 2.0 * x[1:-1] + x[:-2]
-    sigma = 1.4826 * float(np.median(np.abs(d2))) / math.sqrt(6.0)
-    return math.sqrt(sigma ** 2 + lsb ** 2 / 12.0)
 
 
 def noise_floor(objective: Objective, trace, fitness: float) -> NoiseFloor:

@@ -95,7 +95,7 @@ def genes_of(settings: IdentifySettings) -> list[Gene]:
             else:
                 genes.append(Gene(q.name, float(lo), float(hi), False))
     for name in NUISANCE_DEFAULTS:
-        if name in settings.nuisances:
+        if name in (settings.nuisances or ()):
             lo, hi = getattr(settings.nuisance_bounds, name)
             genes.append(Gene(name, float(lo), float(hi), False))
     return genes
@@ -181,7 +181,8 @@ class Objective:
         targets = tuple(low_pass(corrected(name), self.measured_width)
                         for name in ("current", "position", "speed"))
         self.speed_limit = fit_speed_limit(settings, params)
-        sample_weight = sample_weights(low_pass(trace["speed"], self.measured_width), self.speed_limit,
+        sample_weight = sample_weights(low_pass(trace["speed"], self.measured_width),
+                                       self.speed_limit,
                                        min(round(STARTUP_SECONDS * recording_rate), n // 10))
         w = settings.signals
         self.target = ErrorTarget(*targets, np.array([w.current, w.position, w.speed], dtype=np.float64),

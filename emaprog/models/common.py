@@ -20,6 +20,7 @@ class Inputs(NamedTuple):
     command: np.ndarray  # [rad]
     load_torque: np.ndarray  # [N m]
     load_stiffness: float  # [N m/rad]
+    lead: int = 0  # samples before the recording's first one (time < 0): the models settle
 
     def drive(self, hinge_moment: float = 0.0) -> Drive:
         """The kernels' :class:`~emaprog.kernels.structs.Drive`, plus a constant hinge moment [N m]."""
@@ -33,13 +34,59 @@ def inputs(scenario: Scenario, params: Parameters) -> Inputs:
     return Inputs(t, cmd, torque, stiffness)
 
 
+#: [s] the models run at the recording's first command before its first sample when the
+#: unit was not at rest unloaded at zero there (:func:`settle_lead`): several time constants
+#: of the position loop (60 rad/s) and the speed loop's integrator.
+SETTLE_SECONDS = 0.25
+
+
+def starts_loaded(trace) -> bool:
+    """Whether the current over the first millisecond is a holding current: its mean
+    magnitude over 4 noise sigmas (noise alone averages 0.8 sigma) and over 5 % of the
+    recording's RMS current. The magnitude, since the sign of an equivalent current built
+    from phase currents is least sure at rest."""
+    current = np.asarray(trace["current"], dtype=np.float64)
+    time = np.asarray(trace.time, dtype=np.float64)
+    n = max(2, int(np.searchsorted(time, time[0] + 1e-3)))
+    head = float(np.mean(np.abs(current[:n])))
+    sigma = signals.noise_sigma(current, 0.0)
+    return head > max(4.0 * sigma, 0.05 * float(np.sqrt(np.mean(current ** 2))))
+
+
+def settle_lead(trace, rate: float) -> int:
+    """Controller periods the models run before a recording's first sample [-].
+
+    Both models start at rest, unloaded, at angle 0. A twin (emaprog's own trace) and a
+    rig recording whose logger starts with the test, unit at rest at 0 and its load taken
+    up in the first milliseconds, start the same way: no lead. A recording whose unit
+    already holds its load at the first sample (a logger started during a pre-roll at rest,
+    :func:`starts_loaded`) or rests at another angle (the command's first value) is met by
+    :data:`SETTLE_SECONDS` at that first command first, so that the models start from the
+    unit's state.
+    """
+    meta = getattr(trace, "metadata", None) or {}
+    if meta.get("model") in ("reference", "monitor"):
+        return 0
+    command = np.asarray(trace["command"], dtype=np.float64)
+    position = np.asarray(trace["position"], dtype=np.float64)
+    span = max(float(np.ptp(command)), 1e-9)
+    n = max(2, int(np.searchsorted(trace.time, trace.time[0] + 1e-3)))
+    at_command = abs(float(np.mean(position[:n])) - float(command[0])) <= max(
+        0.01 * span, 5.0 * signals.noise_sigma(position, 0.0) / math.sqrt(n))
+    at_zero = abs(float(command[0])) <= 1e-3 * span
+    if not at_command or (at_zero and not starts_loaded(trace)):
+        return 0  # at rest unloaded at zero, or not yet at its first command (a step at 0)
+    return int(round(SETTLE_SECONDS * rate))
+
+
 def inputs_from_trace(trace, rate: float, load_spec=None) -> Inputs:
     """Inputs on the controller grid (``rate`` [Hz]) for a measured trace at any rate.
 
-    The trace's first sample is time 0 (the Monitor starts at rest there). When the
-    trace is already on the controller grid its command is used as it is; otherwise
-    the command is interpolated linearly onto the grid, which covers the last
-    recorded instant. The load is the scenario's where known, else none.
+    The trace's first sample is time 0; the models start at rest there, or
+    :func:`settle_lead` periods before it at the first command. When the trace is already
+    on the controller grid its command is used as it is; otherwise the command is
+    interpolated linearly onto the grid, which covers the last recorded instant. The load
+    is the scenario's where known, else none.
     """
     t_rec = np.asarray(trace.time, dtype=np.float64) - float(trace.time[0])
     n = int(math.ceil(t_rec[-1] * rate - 1e-9)) + 1
@@ -49,10 +96,14 @@ def inputs_from_trace(trace, rate: float, load_spec=None) -> Inputs:
         grid, command = t_rec, np.ascontiguousarray(command)
     else:
         command = np.interp(grid, t_rec, command)
+    lead = settle_lead(trace, rate)
+    if lead:
+        grid = np.concatenate([(np.arange(lead, dtype=np.float64) - lead) / rate, grid])
+        command = np.concatenate([np.full(lead, command[0]), command])
     if load_spec is None:
-        return Inputs(grid, command, np.zeros(grid.size), 0.0)
+        return Inputs(grid, command, np.zeros(grid.size), 0.0, lead)
     torque, stiffness = signals.load(load_spec, grid)
-    return Inputs(grid, command, torque, stiffness)
+    return Inputs(grid, command, torque, stiffness, lead)
 
 
 class Instants(NamedTuple):
@@ -70,13 +121,14 @@ class Instants(NamedTuple):
 
 def recorded_instants(trace_time: np.ndarray, grid: np.ndarray, shift: float = 0.0) -> Instants:
     """The :class:`Instants` of a trace's samples, moved by ``shift`` [s], on a controller grid
-    starting at 0."""
+    starting at 0 (or, with a lead, ``grid[0] < 0``)."""
     t_rec = np.asarray(trace_time, dtype=np.float64) - float(trace_time[0]) + shift
     if grid.size == t_rec.size and np.array_equal(grid, t_rec):
         return Instants(np.arange(grid.size, dtype=np.int64), np.zeros(grid.size))
     period = grid[1] - grid[0]
-    # instants outside the grid (a shift at either end) read its first or last sample
-    position = np.clip(t_rec / period, 0.0, grid.size - 1.0)
+    # instants outside the grid (a shift at either end) read its first or last sample; a grid
+    # with a lead (Inputs.lead) starts before the recording's first sample
+    position = np.clip((t_rec - grid[0]) / period, 0.0, grid.size - 1.0)
     index = np.minimum(np.floor(position + 1e-9).astype(np.int64), grid.size - 1)
     fraction = np.clip(position - index, 0.0, 1.0)
     fraction[(np.abs(fraction) < 1e-9) | (index == grid.size - 1)] = 0.0

@@ -1,0 +1,67 @@
+"""Identification settings a recording leaves open, chosen for what the recording is.
+
+A twin experiment (emaprog's own Reference Model run with exactly the parameter set in
+use, its load known from the scenario it carries) and a real unit (a rig recording, or
+any trace identified against a commissioned unit's set) need different defaults:
+
+* ``identify.nuisances`` omitted: a real unit works under a hinge moment nobody wrote
+  down and at a winding temperature of its own, so both ``hinge_moment`` and
+  ``resistance_factor`` are estimated; a twin's load is known and nothing is added
+  (measured on the quick campaign: an extra gene costs the twins a little, see
+  docs/reference.md "Identification defaults");
+* ``identify.nominal_correction`` omitted: ``recording`` for a commissioned unit (the
+  unit's own commissioning residual, when the inspection repeats that recording's
+  command on its grid; else ``reference``, and the report says why), ``reference``
+  otherwise.
+
+:func:`resolve` returns settings in which both are concrete, and why, for the report.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+from ..config.parameters import Parameters
+from ..config.scenario import IdentifySettings
+
+#: What a real unit estimates beside the faults when ``identify.nuisances`` is omitted.
+REAL_UNIT_NUISANCES = ["hinge_moment", "resistance_factor"]
+
+
+class Resolved(NamedTuple):
+    settings: IdentifySettings  # nuisances and nominal_correction concrete
+    real_unit: bool
+    notes: dict[str, str]  # setting -> why it has its value
+
+
+def is_real_unit(metadata: dict | None, params: Parameters) -> bool:
+    """A rig recording (not written by emaprog's models), or a commissioned unit's set."""
+    model = (metadata or {}).get("model")
+    return model not in ("reference", "monitor") or params.spec.commissioning is not None
+
+
+def resolve(settings: IdentifySettings, metadata: dict | None, params: Parameters,
+            nuisances: list[str] | None = None, real_unit: bool | None = None) -> Resolved:
+    """``settings`` with the open choices made (module docstring); ``nuisances`` (the
+    command line's ``--nuisances``) overrides the settings' own; ``real_unit`` says what the
+    trace is where its metadata cannot (a campaign's spread or commissioned unit)."""
+    real = is_real_unit(metadata, params) if real_unit is None else real_unit
+    what = "a real unit" if real else "a twin experiment"
+    notes = {}
+    update: dict = {}
+    if nuisances is not None:
+        update["nuisances"] = list(nuisances)
+        notes["nuisances"] = "--nuisances"
+    elif settings.nuisances is None:
+        update["nuisances"] = list(REAL_UNIT_NUISANCES) if real else []
+        notes["nuisances"] = f"default for {what}"
+    else:
+        notes["nuisances"] = "identify.nuisances"
+    if settings.nominal_correction is None:
+        commissioned = params.spec.commissioning is not None
+        update["nominal_correction"] = "recording" if commissioned else "reference"
+        notes["nominal_correction"] = ("default for a commissioned unit" if commissioned
+                                       else f"default for {what}")
+    else:
+        notes["nominal_correction"] = "identify.nominal_correction"
+    return Resolved(settings.model_copy(update=update), real, notes)

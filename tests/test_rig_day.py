@@ -1,0 +1,299 @@
+"""A rig user's first day: the README's rig commands, run as written on the shipped example
+rig files (logger CSV with free text, a units row, deg, rpm, mA, phase currents only), and
+the same recordings as other loggers write them (no speed channel, a European export, a
+pre-roll, two current channels swapped) and mis-mapped ones (exit 2 naming the channel).
+
+The example unit is `default` moved by build tolerances (examples/rig/generate.py), its
+inspections under 30 N m of hinge moment nobody tells emaprog. Tolerances are SPEC 10's
+(docs/reference.md, Faults): friction 5 % relative, backlash 5e-5 rad, shorted fraction
+0.03 on the right phase, zeta 0.05; the hinge moment must lie in its 90 % interval.
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib.util
+import json
+import os
+import re
+import shlex
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+from emaprog.cli import app
+
+from .conftest import ROOT
+
+RIG = ROOT / "examples" / "rig"
+TRUTH = json.loads((RIG / "truth.json").read_text())["recordings"]
+LOGGER_UNITS = {"Time_ms": "ms", "Cmd_deg": "deg", "Pos_deg": "deg", "MotSpd_rpm": "rpm",
+                "Ia_mA": "mA", "Ib_mA": "mA", "Ic_mA": "mA"}
+
+
+def generator():
+    spec = importlib.util.spec_from_file_location("rig_generate", RIG / "generate.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def readme_rig_commands() -> list[str]:
+    text = (ROOT / "README.md").read_text()
+    block = text.split("<!-- rig-commands -->", 1)[1].split("```bash", 1)[1].split("```", 1)[0]
+    return [line.strip() for line in block.strip().splitlines() if line.strip()]
+
+
+def run(args: list[str]):
+    return CliRunner().invoke(app, args)
+
+
+def within_spec(report: dict, truth: dict) -> list[str]:
+    """Which quantities of a report are outside SPEC 10's tolerance of the truth."""
+    est = report["estimate"]
+    faults = truth["faults"]
+    bad = []
+    if abs(est["friction"] / faults.get("friction", 1.0) - 1.0) > 0.05:
+        bad.append(f"friction {est['friction']:.3f}")
+    if abs(est["backlash"] - faults.get("backlash", 0.0)) > 5e-5:
+        bad.append(f"backlash {est['backlash']:.2e}")
+    short = faults.get("short_circuit", {"a": 0.0, "b": 0.0, "c": 0.0})
+    for phase in "abc":
+        if abs(est["short_circuit"][phase] - short[phase]) > 0.03:
+            bad.append(f"short {phase} {est['short_circuit'][phase]:.3f}")
+    if est["eccentricity"]["zeta"] > 0.05:
+        bad.append(f"zeta {est['eccentricity']['zeta']:.3f}")
+    return bad
+
+
+@pytest.fixture
+def workdir(tmp_path):
+    """A user's folder holding a copy of examples/rig (the commands write out/ there)."""
+    shutil.copytree(RIG, tmp_path / "examples" / "rig")
+    cwd = os.getcwd()
+    os.chdir(tmp_path)
+    yield tmp_path
+    os.chdir(cwd)
+
+
+@pytest.mark.slow
+def test_readme_rig_commands_run_as_written_and_find_the_faults(workdir):
+    """Every command of the README's rig section, exactly as written, exits 0; the
+    inspections' estimates are within SPEC 10 of the truth, the short circuit named on B
+    when flagged, and the unknown 30 N m hinge moment within its 90 % interval."""
+    commands = readme_rig_commands()
+    assert len(commands) >= 3 and all(c.startswith("emaprog ") for c in commands)
+    for command in commands:
+        result = run(shlex.split(command)[1:])
+        assert result.exit_code == 0, (command, result.output)
+    reports = sorted(workdir.rglob("report.json"))
+    assert len(reports) == 3
+    for path in reports:
+        report = json.loads(path.read_text())
+        name = Path(report["trace"]).name
+        truth = TRUTH[name]
+        assert within_spec(report, truth) == [], (name, within_spec(report, truth))
+        low, high = report["nuisance_interval"]["hinge_moment"]
+        assert low <= truth["hinge_moment"] <= high, (name, low, high)
+        assert set(report["health"].values()) <= {"nominal", "incipient", "degraded"}, name
+        if truth["faults"].get("short_circuit"):
+            assert report["health"]["short_circuit"] == "incipient"
+            assert report["short_circuit_phase"] == "b" and report["phase_channels"]["b"] == "Ib_mA"
+        else:
+            assert report["short_circuit_phase"] is None
+    trend = json.loads(next(workdir.rglob("trend.json")).read_text())
+    assert trend["faults"]["friction"]["status"] in ("tracked", "failed")
+
+
+# ------------------------------------------------------------ other loggers, same unit
+def logger_frame(name: str) -> pd.DataFrame:
+    return pd.read_csv(RIG / name, skiprows=[0, 1, 3])
+
+
+def write_logger(frame: pd.DataFrame, path: Path, sep=",", decimal=".", preamble=(),
+                 units=True) -> Path:
+    lines = [*preamble, sep.join(frame.columns)]
+    if units:
+        lines.append(sep.join(LOGGER_UNITS[c] for c in frame.columns))
+    body = frame.to_csv(sep=sep, decimal=decimal, index=False, header=False)
+    path.write_text("\n".join(lines) + "\n" + body)
+    return path
+
+
+@functools.lru_cache(maxsize=None)
+def preroll_frames(seconds: float = 0.05) -> dict[str, pd.DataFrame]:
+    """The example recordings with the logger started ``seconds`` before the command (the
+    unit at rest under its hinge moment from the first sample), in the logger's format."""
+    gen = generator()
+    frames = {}
+    for name in ("healthy-20Nm.csv", "healthy-40Nm.csv", "inspection-1500h.csv"):
+        t = TRUTH[name]
+        cols = gen.simulate_recording(t["hinge_moment"], t["faults"], t["noise_seed"],
+                                      preroll=seconds)
+        cols["time"] = cols["time"] + 12.0  # the logger's own clock
+        rows = [r.split(",") for r in gen.logger_rows(cols)]
+        frames[name] = pd.DataFrame(rows, columns=list(LOGGER_UNITS)).astype(float)
+    return frames
+
+
+def variant(kind: str, name: str, folder: Path) -> Path:
+    frame = preroll_frames()[name] if kind == "preroll" else logger_frame(name)
+    if kind == "no-speed":
+        return write_logger(frame.drop(columns=["MotSpd_rpm"]), folder / name)
+    if kind == "european":
+        return write_logger(frame, folder / name, sep=";", decimal=",",
+                            preamble=("Messdaten exportiert 01.12.2026 10:04", "Prüfstand 2; Kanal 1-7"))
+    if kind == "swapped":
+        return write_logger(frame.rename(columns={"Ia_mA": "Ib_mA", "Ib_mA": "Ia_mA"})[frame.columns],
+                            folder / name)
+    return write_logger(frame, folder / name, preamble=("pre-roll 50 ms",))
+
+
+def column_map(folder: Path, drop=()) -> Path:
+    mapping = {k: v for k, v in yaml.safe_load((RIG / "logger.yaml").read_text()).items()
+               if k not in drop}
+    path = folder / "map.yaml"
+    path.write_text(yaml.safe_dump(mapping))
+    return path
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", ["no-speed", "european", "preroll", "swapped"])
+def test_other_loggers_are_identified_with_the_documented_commands(tmp_path, kind):
+    """The same unit through the README's commission and identify, recorded as other loggers
+    write it. Swapping the Ia and Ib columns names the short on phase A, the channel now
+    holding the shorted winding's current; the others name B."""
+    mapping = column_map(tmp_path, drop=("speed",) if kind == "no-speed" else ())
+    healthy = [variant(kind, n, tmp_path) for n in ("healthy-20Nm.csv", "healthy-40Nm.csv")]
+    inspection = variant(kind, "inspection-1500h.csv", tmp_path)
+    unit = tmp_path / "unit.yaml"
+    result = run(["commission", *map(str, healthy), "--columns", str(mapping), "-o", str(unit)])
+    assert result.exit_code == 0, result.output
+    result = run(["identify", str(inspection), "--columns", str(mapping), "-p", str(unit),
+                  "-o", str(tmp_path / "report")])
+    assert result.exit_code == 0, result.output
+    report = json.loads((tmp_path / "report" / "report.json").read_text())
+    truth = dict(TRUTH["inspection-1500h.csv"])
+    if kind == "swapped":
+        truth = {**truth, "faults": {**truth["faults"], "short_circuit": {"a": 0.12, "b": 0.0,
+                                                                           "c": 0.0}}}
+    assert within_spec(report, truth) == [], within_spec(report, truth)
+    assert report["short_circuit_phase"] == ("a" if kind == "swapped" else "b")
+    assert report["phase_channels"][report["short_circuit_phase"]] == "Ib_mA"
+    low, high = report["nuisance_interval"]["hinge_moment"]
+    assert low <= 30.0 <= high
+
+
+@pytest.mark.parametrize("edit,channel,fragment", [
+    ({"speed": {"column": "MotSpd_rpm", "unit": "rad/s"}}, "speed.unit", "says 'rpm'"),
+    ({"position": {"column": "Pos_deg", "unit": "rad"}}, "position.unit", "says 'deg'"),
+    ({"current_a": {"column": "Ia_mA", "unit": "A"}}, "current_a.unit", "says 'mA'"),
+])
+def test_a_map_whose_unit_contradicts_the_units_row_is_refused(tmp_path, edit, channel, fragment):
+    """The logger's units row says rpm where the map says rad/s: exit 2 naming the channel,
+    nothing written."""
+    mapping = yaml.safe_load((RIG / "logger.yaml").read_text())
+    mapping.update(edit)
+    path = tmp_path / "map.yaml"
+    path.write_text(yaml.safe_dump(mapping))
+    out = tmp_path / "out"
+    result = run(["identify", str(RIG / "inspection-1500h.csv"), "--columns", str(path),
+                  "-o", str(out)])
+    assert result.exit_code == 2, result.output
+    assert channel in result.output and fragment in result.output
+    assert not out.exists()
+
+
+def test_dialects_are_detected(tmp_path, params):
+    """A European export (two free-text lines, units row, ';' and decimal comma), a tab file
+    with comments and no units row, and the shipped file read to the same numbers."""
+    from emaprog.io.recordings import load_column_map, read_recording
+
+    frame = logger_frame("healthy-20Nm.csv")
+    columns = load_column_map(RIG / "logger.yaml")
+    plain = read_recording(RIG / "healthy-20Nm.csv", columns, params)
+    european = read_recording(variant("european", "healthy-20Nm.csv", tmp_path), columns, params)
+    tab = tmp_path / "tab.txt"
+    tab.write_text("# logger DL-400\n# bench 2\n" + frame.to_csv(sep="\t", index=False))
+    tabbed = read_recording(tab, columns, params)
+    for other in (european, tabbed):
+        for key in ("time", "command", "position", "speed", "current", "current_b"):
+            assert np.array_equal(other[key], plain[key]), key
+    layout = european.metadata["source"]["layout"]
+    assert layout == {"delimiter": ";", "decimal": ",", "header_line": 3, "first_data_line": 5,
+                      "preamble_lines": 2, "units_lines": 1}
+
+
+def test_a_cut_last_line_is_refused_naming_it(tmp_path):
+    """A file cut inside its last number, without a final newline (4431 mA read as 438
+    otherwise): exit 2 naming the line; the complete file without a final newline reads."""
+    text = (RIG / "healthy-20Nm.csv").read_text().rstrip("\n")
+    cut = tmp_path / "cut.csv"
+    cut.write_text(text[:-1])
+    complete = tmp_path / "complete.csv"
+    complete.write_text(text)
+    result = run(["convert", str(cut), "--columns", str(RIG / "logger.yaml"),
+                  "-o", str(tmp_path / "cut.parquet")])
+    assert result.exit_code == 2 and "last line" in result.output and "cut" in result.output
+    assert re.search(r"line \d+", result.output)
+    assert not (tmp_path / "cut.parquet").exists()
+    result = run(["convert", str(complete), "--columns", str(RIG / "logger.yaml"),
+                  "-o", str(tmp_path / "complete.parquet")])
+    assert result.exit_code == 0, result.output
+
+
+def test_scale_offset_and_sign_calibrate_a_channel(tmp_path, params):
+    """A current logged in volts through a 100 mV/A probe with a 0.02 V offset, and a
+    position axis counted the other way, read back as the plain file's values to 1e-9."""
+    from emaprog.io.recordings import load_column_map, read_recording
+
+    frame = logger_frame("healthy-20Nm.csv")
+    raw = frame.assign(Ia_V=frame["Ia_mA"] * 1e-4 + 0.02, Pos_deg=-frame["Pos_deg"])
+    path = tmp_path / "volts.csv"
+    raw.drop(columns=["Ia_mA"]).to_csv(path, index=False)
+    mapping = yaml.safe_load((RIG / "logger.yaml").read_text())
+    mapping["current_a"] = {"column": "Ia_V", "unit": "mA", "scale": 1e4, "offset": -200.0}
+    mapping["position"] = {"column": "Pos_deg", "unit": "deg", "sign": -1}
+    (tmp_path / "map.yaml").write_text(yaml.safe_dump(mapping))
+    calibrated = read_recording(path, load_column_map(tmp_path / "map.yaml"), params)
+    plain = read_recording(RIG / "healthy-20Nm.csv", load_column_map(RIG / "logger.yaml"), params)
+    for key in ("position", "current_a", "current"):
+        assert np.allclose(calibrated[key], plain[key], rtol=0, atol=1e-9), key
+
+
+def test_tdms_recording_reads_like_the_csv(tmp_path, params):
+    """An NI TDMS file (npTDMS, the rig extra) with the logger's channels in one group and a
+    waveform time track: the same trace as the CSV."""
+    nptdms = pytest.importorskip("nptdms")
+    from emaprog.io.recordings import load_column_map, read_recording
+
+    frame = logger_frame("healthy-20Nm.csv")
+    channels = [nptdms.ChannelObject("rig", name, frame[name].to_numpy(),
+                                     properties={"wf_increment": 1e-4, "wf_start_offset": 0.0})
+                for name in frame.columns if name != "Time_ms"]
+    path = tmp_path / "run.tdms"
+    with nptdms.TdmsWriter(path) as writer:
+        writer.write_segment([nptdms.GroupObject("rig"), *channels])
+    mapping = yaml.safe_load((RIG / "logger.yaml").read_text())
+    mapping["time"] = {"column": "waveform_time", "unit": "s"}
+    mapping["speed"] = {"column": "rig/MotSpd_rpm", "unit": "rpm"}
+    (tmp_path / "map.yaml").write_text(yaml.safe_dump(mapping))
+    tdms = read_recording(path, load_column_map(tmp_path / "map.yaml"), params)
+    plain = read_recording(RIG / "healthy-20Nm.csv", load_column_map(RIG / "logger.yaml"), params)
+    for key in ("time", "position", "speed", "current"):
+        assert np.allclose(tdms[key], plain[key], rtol=1e-12, atol=1e-9), key
+
+
+def test_a_recording_that_starts_in_motion_is_refused(tmp_path):
+    """Cut 0.1 s into the chirp: exit 2 saying it starts in motion, no report."""
+    frame = logger_frame("inspection-1500h.csv").iloc[1000:]
+    path = write_logger(frame, tmp_path / "late.csv")
+    result = run(["identify", str(path), "--columns", str(RIG / "logger.yaml"),
+                  "-o", str(tmp_path / "rep")])
+    assert result.exit_code == 2 and "starts in motion" in result.output, result.output
+    assert not (tmp_path / "rep").exists()
