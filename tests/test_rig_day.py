@@ -184,7 +184,9 @@ def test_other_loggers_are_identified_with_the_documented_commands(tmp_path, kin
                                                                            "c": 0.0}}}
     assert within_spec(report, truth) == [], within_spec(report, truth)
     assert report["short_circuit_phase"] == ("a" if kind == "swapped" else "b")
-    assert report["phase_channels"][report["short_circuit_phase"]] == "Ib_mA"
+    # the logger column that now holds the shorted winding's current
+    assert report["phase_channels"][report["short_circuit_phase"]] == (
+        "Ia_mA" if kind == "swapped" else "Ib_mA")
     low, high = report["nuisance_interval"]["hinge_moment"]
     assert low <= 30.0 <= high
 

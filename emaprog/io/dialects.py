@@ -153,6 +153,14 @@ def _decimals(text: str, decimal: str) -> int:
     return len(mantissa.split(decimal)[1]) if decimal in mantissa else 0
 
 
+def _value(text: str, decimal: str) -> float:
+    return float(text.replace(",", ".") if decimal == "," else text)
+
+
+def _digits(text: str) -> int:
+    return sum(ch.isdigit() for ch in re.split(r"[eE]", text)[0])
+
+
 def _check_last_line(raw: str, lines: list[str], dialect: Dialect, path: Path, line_no: int):
     """A file without a final newline whose last line is shorter than its rows: cut."""
     if raw.endswith(("\n", "\r")):
@@ -162,9 +170,18 @@ def _check_last_line(raw: str, lines: list[str], dialect: Dialect, path: Path, l
     if not cut:
         previous = [_split(line, dialect.delimiter) for line in lines[-21:-1]]
         for j, text in enumerate(last):
-            usual = [_decimals(p[j], dialect.decimal) for p in previous if len(p) > j]
-            if usual and _decimals(text, dialect.decimal) < min(usual):
-                cut = True
+            column = [p[j] for p in previous if len(p) > j and _is_number(p[j], dialect.decimal)
+                      and p[j] not in _MISSING]
+            if not column or text in _MISSING or not _is_number(text, dialect.decimal):
+                continue
+            if _decimals(text, dialect.decimal) < min(_decimals(c, dialect.decimal) for c in column):
+                cut = True  # fewer decimals than the logger ever writes in this column
+            values = np.array([_value(c, dialect.decimal) for c in column])
+            step = float(np.median(np.abs(np.diff(values)))) if values.size > 2 else 0.0
+            value = _value(text, dialect.decimal)
+            if (_digits(text) < _digits(column[-1])
+                    and abs(value - values[-1]) > 10.0 * max(step, 10.0 ** -_decimals(text, dialect.decimal))):
+                cut = True  # a digit lost: far off the column's course
     if cut:
         raise InputError(path, f"its last line (line {line_no}) looks cut: the file ends without "
                          "a newline inside a row whose last field is shorter than the rows "
