@@ -11,6 +11,7 @@ their cases: that is what makes them resumable). Errors in user input raise
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal, NamedTuple
@@ -32,7 +33,9 @@ from .identification.defaults import resolve as resolve_settings
 from .identification.objective import low_pass
 from .identification import result as verdicts
 from .io.recordings import check_at_rest
-from .io.storage import Trace, frame_of, read_trace, trace_of, write_json, write_trace
+from .io.storage import (
+    Trace, frame_of, read_trace, trace_of, writable_output, write_json, write_trace,
+)
 from .models import monitor, reference
 from .models.common import inputs_from_trace
 
@@ -40,9 +43,24 @@ Model = Literal["reference", "monitor"]
 
 
 def check(paths: list[str | Path]) -> list[str]:
-    """Validate scenario and campaign files; one summary line each. Raises InputError."""
+    """Validate scenario, campaign, history, parameter-set and column-map files; one summary
+    line each. Raises InputError."""
+    from .config.yamlfile import load_mapping
+    from .io.recordings import load_column_map
+
     lines = []
     for path in paths:
+        data = load_mapping(path)
+        if "electrical" in data or "mechanical" in data:
+            params = parameter_sets.load(str(path))
+            unit = " (a commissioned unit)" if params.spec.commissioning is not None else ""
+            lines.append(f"{path}: parameter set '{params.spec.name}'{unit}")
+            continue
+        if "time" in data and "position" in data and "duration" not in data:
+            mapping = load_column_map(path)
+            lines.append(f"{path}: column map of {len(mapping.mapped())} channels "
+                         f"({', '.join(mapping.mapped())})")
+            continue
         kind, loaded = load_any(path)
         if kind == "campaign":
             campaign, base = loaded
@@ -87,6 +105,8 @@ def simulate(scenario: str | Path | Scenario | dict, *, model: Model = "referenc
     also written there as Parquet (and with ``plot`` a PNG beside it).
     ``parameters`` overrides the set the scenario names.
     """
+    if output is not None:
+        writable_output(output, "file")
     scenario, folder = _scenario(scenario)
     params = _parameters(parameters, scenario.parameters, folder, "scenario")
     if model == "reference":
@@ -137,6 +157,22 @@ def _trace_scenario(trace: Trace, source: str | Path) -> Scenario | None:
     return parse_scenario(data, f"{source} (embedded scenario)")
 
 
+#: What ``identify -o`` writes: an existing one is not overwritten without ``force``.
+REPORT_FILES = ("report.json", "report.md", "fit.png", "convergence.png")
+
+
+def _trace_set(trace: Trace, embedded: Scenario | None, folder: Path | None) -> str | None:
+    """The parameter set a simulated trace was made with: the file its provenance names
+    (an absolute path, found from any folder), else the scenario's own path (relative to the
+    trace's folder)."""
+    if embedded is None:
+        return None
+    recorded = (trace.metadata or {}).get("parameter_file")
+    if recorded and Path(recorded).suffix in (".yaml", ".yml") and Path(recorded).is_file():
+        return str(Path(recorded).resolve())
+    return embedded.parameters
+
+
 def convert(recording: str | Path, columns: str | Path, *, parameters: str | Path | None = None,
             output: str | Path | None = None) -> pd.DataFrame:
     """A rig recording (CSV, MATLAB .mat, foreign Parquet) as a contract trace, via a column map.
@@ -148,6 +184,8 @@ def convert(recording: str | Path, columns: str | Path, *, parameters: str | Pat
     """
     from .io.recordings import load_column_map, read_recording
 
+    if output is not None:
+        writable_output(output, "file")
     params = _parameters(parameters, None, None, "--parameters")
     trace = read_recording(recording, load_column_map(columns), params, columns)
     if output is not None:
@@ -212,7 +250,8 @@ def _commissioning_residuals(params: Parameters) -> list:
 
 
 def commission(recordings: list[str | Path], output: str | Path, *,
-               parameters: str | Path | None = None, columns: str | Path | None = None) -> Commissioned:
+               parameters: str | Path | None = None, columns: str | Path | None = None,
+               force: bool = False) -> Commissioned:
     """Fit a unit's own parameter set from recordings of it while healthy (SPEC 11).
 
     ``recordings``: contract traces (Parquet) or, with ``columns``, rig recordings.
@@ -228,6 +267,7 @@ def commission(recordings: list[str | Path], output: str | Path, *,
 
     if not recordings:
         raise InputError("commission", "give at least one recording of the healthy unit")
+    writable_output(output, "file", force, guarded=("unit",))
     base = _parameters(parameters, None, None, "--parameters")
     prepared = []
     for path in map(Path, recordings):
@@ -241,9 +281,12 @@ def commission(recordings: list[str | Path], output: str | Path, *,
     text = commissioning.unit_set(base, result, prepared, name, datetime.date.today().isoformat(),
                                   None if columns is None else str(columns))
     output.parent.mkdir(parents=True, exist_ok=True)
-    tmp = output.with_name(f".{output.name}.tmp")
-    tmp.write_text(text)
-    tmp.replace(output)
+    tmp = output.with_name(f".{output.name}.{os.getpid()}.tmp")
+    try:
+        tmp.write_text(text)
+        tmp.replace(output)
+    finally:
+        tmp.unlink(missing_ok=True)
     fitted = {k: {"value": result.values[k], "base": result.base[k], "standard_error": e}
               for k, e in result.standard_errors.items()}
     return Commissioned(output, fitted, result.not_determined, result.degenerate,
@@ -253,7 +296,8 @@ def commission(recordings: list[str | Path], output: str | Path, *,
 def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = None,
              parameters: str | Path | None = None, columns: str | Path | None = None,
              output: str | Path | None = None, inspection: dict | None = None,
-             nuisances: list[str] | None = None, show_progress: bool = False) -> Report:
+             nuisances: list[str] | None = None, force: bool = False,
+             show_progress: bool = False) -> Report:
     """Identify the faults in a measured trace (a Parquet path or a DataFrame).
 
     Settings come from ``scenario`` when given, else from the scenario embedded in
@@ -269,6 +313,8 @@ def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = 
     recording (CSV, MATLAB .mat, foreign Parquet; :mod:`emaprog.io.recordings`).
     With ``output``, report.json, report.md and the figures are written there.
     """
+    if output is not None:
+        writable_output(output, "folder", force, guarded=REPORT_FILES)
     chosen = load_scenario(scenario) if scenario is not None else None
     if isinstance(trace, pd.DataFrame):
         source: str | Path = "trace (DataFrame)"
@@ -286,7 +332,7 @@ def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = 
         params = _parameters(parameters, chosen.parameters, Path(scenario).parent, scenario)
     else:
         relative = source.parent if isinstance(source, Path) else None
-        params = _parameters(parameters, embedded.parameters if embedded else None, relative,
+        params = _parameters(parameters, _trace_set(measured, embedded, relative), relative,
                              f"{source} (embedded scenario)")
     resolved = resolve_settings(basis.identify if basis is not None else IdentifySettings(),
                                 measured.metadata, params, nuisances)

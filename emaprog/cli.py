@@ -41,6 +41,8 @@ ColumnsOption = Annotated[
         "--columns", "-c",
         help="Column map YAML: read the trace as a rig recording (CSV, .mat, foreign Parquet).")
 ]
+ForceOption = Annotated[bool, typer.Option(
+    "--force", help="Overwrite an existing report or unit file (refused otherwise).")]
 ParametersOverride = Annotated[
     Optional[str], typer.Option(
         "--parameters", "-p",
@@ -75,6 +77,14 @@ def guarded(func: Callable) -> Callable:
     return wrapper
 
 
+def _say_if_compiling() -> None:
+    """The first run after an install compiles the numba kernels (seconds): say so once."""
+    cache = Path(__file__).resolve().parent / "kernels" / "__pycache__"
+    if not any(cache.glob("monitor.*.nbi")):
+        typer.echo("compiling the numerical kernels once (numba; cached for later runs)...",
+                   err=True)
+
+
 def _version(value: bool):
     if value:
         typer.echo(f"emaprog {__version__}")
@@ -91,8 +101,9 @@ def main(
 
 @app.command(epilog="Example: emaprog check configs/*.yaml campaigns/*.yaml")
 @guarded
-def check(files: Annotated[list[Path], typer.Argument(help="Scenario or campaign YAML files.")]):
-    """Validate scenario and campaign files; run nothing."""
+def check(files: Annotated[list[Path], typer.Argument(
+        help="Scenario, campaign, history, parameter-set or column-map YAML files.")]):
+    """Validate scenario, campaign, history, parameter-set and column-map files; run nothing."""
     from . import api
 
     failures = 0
@@ -118,6 +129,7 @@ def simulate(
 ):
     """Simulate a scenario on the Reference (default) or Monitor Model and write its trace."""
     from . import api
+    _say_if_compiling()
     from .config.scenario import load_scenario
 
     if model not in ("reference", "monitor"):
@@ -160,11 +172,13 @@ def commission(
     parameters: Annotated[Optional[str], typer.Option(
         "--parameters", "-p", help="Base parameter set (shipped name or YAML path); default: default.")] = None,
     columns: ColumnsOption = None,
+    force: ForceOption = False,
 ):
     """Fit a unit's own parameter set (inertias, friction, viscous, R, k_e, L, stiffness)."""
     from . import api
+    _say_if_compiling()
 
-    unit = api.commission(recordings, output, parameters=parameters, columns=columns)
+    unit = api.commission(recordings, output, parameters=parameters, columns=columns, force=force)
     for name, entry in unit.fitted.items():
         typer.echo(f"  {name:24s} {entry['value']:.5g} (base {entry['base']:.5g}, "
                    f"x{entry['value'] / entry['base']:.3f} +- {entry['standard_error'] / entry['base']:.1%})")
@@ -193,9 +207,11 @@ def identify(
         "--nuisances", help="Operating conditions to estimate beside the faults: a comma list "
         "of hinge_moment, resistance_factor, or none. Default: both for a real unit (a rig "
         "recording or a commissioned unit's set), none for a twin experiment.")] = None,
+    force: ForceOption = False,
 ):
     """Identify fault magnitudes in a measured trace with the GA over the Monitor Model."""
     from . import api
+    _say_if_compiling()
 
     if (actuator is None) != (usage is None):
         raise InputError("--actuator/--usage", "give both (an inspection of one actuator at one "
@@ -204,7 +220,7 @@ def identify(
     report = api.identify(trace, scenario=scenario, parameters=parameters, columns=columns,
                           output=output or Path("out") / f"{trace.stem}-report",
                           inspection=inspection, nuisances=_nuisance_list(nuisances),
-                          show_progress=True)
+                          force=force, show_progress=True)
     typer.echo(api.verdict_text(report))
     typer.echo(f"report: {report.folder / 'report.md'}")
 

@@ -74,36 +74,51 @@ def from_validation_error(
 
 
 def _allowed_keys(model: type, loc: Sequence[str | int], tags: Iterable[str]) -> list[str]:
-    """Field names of the nested model reached by ``loc`` (best effort)."""
-    from typing import get_args, get_origin
-
+    """Field names of the nested model reached by ``loc`` (best effort). A tag in ``loc``
+    (a tagged union's ``kind``) picks the union member of that kind, so that a typo inside
+    a chirp command lists the chirp's keys, not the first member's."""
     from pydantic import BaseModel
 
     tags = set(tags)
-    current = model
+    annotation: object = model
     for item in loc:
-        if isinstance(item, int) or item in tags:
+        if isinstance(item, int):
             continue
-        if not (isinstance(current, type) and issubclass(current, BaseModel)):
+        if item in tags:
+            annotation = _member_of_kind(annotation, item) or annotation
+            continue
+        current = _model_of(annotation)
+        if current is None:
             return []
         field = current.model_fields.get(item)
         if field is None:
             return []
-        current = _model_of(field.annotation, get_args, get_origin)
-        if current is None:
-            return []
-    if isinstance(current, type) and issubclass(current, BaseModel):
-        return list(current.model_fields)
-    return []
+        annotation = field.annotation
+    current = _model_of(annotation)
+    return list(current.model_fields) if current is not None else []
 
 
-def _model_of(annotation, get_args, get_origin):
+def _members(annotation) -> list:
+    from typing import get_args
+
     from pydantic import BaseModel
 
     if isinstance(annotation, type) and issubclass(annotation, BaseModel):
-        return annotation
-    for arg in get_args(annotation):
-        found = _model_of(arg, get_args, get_origin)
-        if found is not None:
-            return found
+        return [annotation]
+    return [m for arg in get_args(annotation) for m in _members(arg)]
+
+
+def _member_of_kind(annotation, tag: str):
+    """The member of a tagged union whose ``kind`` literal is ``tag``."""
+    from typing import get_args
+
+    for member in _members(annotation):
+        kind = member.model_fields.get("kind")
+        if kind is not None and tag in get_args(kind.annotation):
+            return member
     return None
+
+
+def _model_of(annotation):
+    members = _members(annotation)
+    return members[0] if members else None

@@ -263,7 +263,7 @@ def load(name_or_path: str = "default", relative_to: Path | None = None,
         spec = ParameterFile.model_validate(data)
     except ValidationError as exc:
         raise from_validation_error(path, exc, ParameterFile) from None
-    return derive(spec, str(path))
+    return derive(spec, str(path.resolve()))
 
 
 def scaled(params: Parameters, factors: dict[str, float], source: str) -> Parameters:

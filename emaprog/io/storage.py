@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -67,8 +68,11 @@ def write_trace(path: str | Path, trace: Trace) -> Path:
     meta = {METADATA_KEY: json.dumps(trace.metadata).encode()} if trace.metadata else None
     table = pa.Table.from_arrays(arrays, schema=pa.schema(fields, metadata=meta))
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    pq.write_table(table, tmp)
-    os.replace(tmp, path)
+    try:
+        pq.write_table(table, tmp)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
     return path
 
 
@@ -153,7 +157,11 @@ def read_trace(path: str | Path) -> Trace:
     try:
         table = pq.read_table(path)
     except (pa.ArrowInvalid, OSError) as exc:
-        raise InputError(path, f"is not a readable Parquet trace ({str(exc).splitlines()[0]})") from None
+        hint = ("" if path.suffix.lower() == ".parquet" else
+                "; a data logger's file (CSV, MATLAB, TDMS) is read through a column map: "
+                "give --columns MAP.yaml (docs/reference.md, Rig recordings)")
+        raise InputError(path, f"is not a readable Parquet trace ({str(exc).splitlines()[0]})"
+                         + hint) from None
     _require_columns(table.column_names, path)
     raw_columns = {}
     for name in table.column_names:
@@ -204,7 +212,47 @@ def column_units(path: str | Path) -> dict[str, str]:
 def write_json(path: str | Path, data: dict) -> Path:
     """Write JSON atomically (temporary name, then rename)."""
     path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(json.dumps(data, indent=2, default=float) + "\n")
-    os.replace(tmp, path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        tmp.write_text(json.dumps(data, indent=2, default=float) + "\n")
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return path
+
+
+def writable_output(path: str | Path, kind: str, force: bool = False,
+                    guarded: tuple[str, ...] = ()) -> Path:
+    """Refuse, before any work, an output that cannot be written (exit 2 naming it).
+
+    ``kind`` ``file``: not an existing folder; ``folder``: not an existing file. Without
+    ``force`` an existing file (``kind`` file) or an existing folder holding one of
+    ``guarded`` (its results) is refused rather than overwritten. The nearest existing
+    parent must be a writable folder; nothing is created here.
+    """
+    path = Path(path)
+    if kind == "file" and path.is_dir():
+        raise InputError(path, "is an existing folder; give the file to write (e.g. "
+                         f"{path / 'out.parquet'})", "--output")
+    if kind == "folder" and path.exists() and not path.is_dir():
+        raise InputError(path, "is an existing file; give a folder to write the results in",
+                         "--output")
+    if not force:
+        existing = ([path] if kind == "file" and path.is_file() and guarded else
+                    [path / name for name in guarded if (path / name).exists()])
+        if existing:
+            raise InputError(existing[0], "exists already; it is not overwritten without "
+                             "--force (or choose another --output)", "--output")
+    parent = path if kind == "folder" else path.parent
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        raise InputError(path, f"cannot be written: {parent} is not a folder", "--output")
+    try:  # a probe file, removed at once: permissions, read-only file systems, quotas
+        handle, probe = tempfile.mkstemp(prefix=".emaprog-probe-", dir=parent)
+        os.close(handle)
+        os.unlink(probe)
+    except OSError as exc:
+        raise InputError(path, f"cannot be written: {parent} is not a writable folder "
+                         f"({exc.strerror})", "--output") from None
     return path
