@@ -283,7 +283,7 @@ def trend(
                        show_progress=True)
     for fault, entry in result.faults.items():
         rul = entry["rul"]
-        text = ("not detected" if entry["status"] == "not detected" else
+        text = (entry["status"] if entry["status"] in ("not detected", "insufficient history") else
                 "beyond horizon" if rul["median"] is None else
                 f"{rul['median']:.0f} h (90 %: {rul['low']:.0f} - "
                 + ("beyond horizon" if rul["high"] is None else f"{rul['high']:.0f} h") + ")")

@@ -77,7 +77,6 @@ def _allowed_keys(model: type, loc: Sequence[str | int], tags: Iterable[str]) ->
     """Field names of the nested model reached by ``loc`` (best effort). A tag in ``loc``
     (a tagged union's ``kind``) picks the union member of that kind, so that a typo inside
     a chirp command lists the chirp's keys, not the first member's."""
-    from pydantic import BaseModel
 
     tags = set(tags)
     annotation: object = model

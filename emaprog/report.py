@@ -352,7 +352,7 @@ def plot_trend(result: dict, path: str | Path) -> Path:
         metrics = entry["metrics"]
         if metrics and metrics["true_failure_at"] is not None:
             ax.axvline(metrics["true_failure_at"], color="k", lw=0.8, label="true failure")
-        median = ("not detected" if entry["status"] == "not detected" else
+        median = (entry["status"] if entry["status"] in ("not detected", "insufficient history") else
                   "RUL beyond horizon" if rul["median"] is None else f"RUL {rul['median']:.0f} h")
         ax.set_title(f"{SEVERITY_LABELS[fault]}: {median}", fontsize=9)
         ax.set_xlabel("usage [flight hours]", fontsize=8)
@@ -378,6 +378,10 @@ def trend_markdown(result: dict) -> str:
         if e["status"] == "not detected":
             rows.append(f"| {fault} | — | {e['severity'][-1]:.4g} | {e['threshold']:.4g} | never | "
                         "not detected | — |")
+            continue
+        if e["status"] == "insufficient history":
+            rows.append(f"| {fault} | — | {e['severity'][-1]:.4g} | {e['threshold']:.4g} | "
+                        f"{hours(e['detected_at'])} | insufficient history | — |")
             continue
         rows.append(f"| {fault} | {e['law']} | {e['severity'][-1]:.4g} | {e['threshold']:.4g} | "
                     f"{hours(e['detected_at'])} | {hours(e['rul']['median'])} | "

@@ -61,7 +61,7 @@ from ..faults import (
 )
 from ..kernels.structs import Plant
 from ..signals import noise_sigma
-from .objective import NUISANCE_DEFAULTS, SIGNALS, Objective, fine_plant
+from .objective import NUISANCE_DEFAULTS, SIGNALS, Objective, fine_plant, low_pass
 
 Z90 = 1.6448536269514722  # two-sided 90 % quantile of the normal distribution
 #: 90 % quantile of the length of a 2-D normal vector of zero mean, over its per-axis sigma
@@ -79,6 +79,16 @@ RAYLEIGH90 = 2.1459660262893472
 #: median 3.1; calibration units 28-109 in 4 of 400, median 2.9): `inconclusive`, never an
 #: alarm.
 MAX_FLOOR_RATIO = 25.0
+#: What a recording must hold to support any verdict (:func:`uninformative`): the fitted
+#: stretch [s] (the commissioning minimum: a 0.1 s Fig. 10 recording read friction 3.79 for
+#: 1.5 and the short circuit 0.205 for 0.12), the motor's peak speed as a share of the speed
+#: limit (at rest or under a command too small to pass the friction nothing is excited), and
+#: the noise floor's share of the filtered signal's energy (a recording that is mostly noise
+#: is "explained" by any fit: at rest the floor is about the whole signal; the shipped noise
+#: levels give 1e-5 on the standard test command, 20 x that noise 5e-3).
+MIN_FIT_SECONDS = 0.2
+MIN_PEAK_SPEED_SHARE = 0.05
+MAX_FLOOR_SHARE = 0.05
 #: Finite-difference step per quantity, as a share of its search span.
 STEP_SHARE = 2e-3
 #: The nuisances' model-error laws (deviation: from :data:`~.objective.NUISANCE_DEFAULTS`),
@@ -128,6 +138,28 @@ def noise_floor(objective: Objective, trace, fitness: float) -> NoiseFloor:
     floor = max(floor, 1e-30)
     ratio = fitness / floor
     return NoiseFloor(sigma, floor, ratio, bool(ratio <= MAX_FLOOR_RATIO))
+
+
+def uninformative(objective: Objective, trace, floor: NoiseFloor) -> str | None:
+    """Why the recording cannot support a verdict (None: it can); see :data:`MIN_FIT_SECONDS`."""
+    weight = objective.target.sample_weight
+    fitted = float(weight.sum()) / trace.sample_rate
+    if fitted < MIN_FIT_SECONDS:
+        return (f"the recording is too short to judge: {fitted:.3g} s fitted (after the "
+                f"start-up window), at least {MIN_FIT_SECONDS:g} s of the standard test command "
+                "are needed")
+    limit = objective.params.spec.controller.speed_limit
+    speed = np.abs(low_pass(trace["speed"], objective.measured_width))
+    peak = float(np.max(speed[weight > 0])) if np.any(weight > 0) else 0.0
+    if peak < MIN_PEAK_SPEED_SHARE * limit:
+        return (f"the recording does not excite the actuator: peak motor speed {peak:.3g} rad/s, "
+                f"below {MIN_PEAK_SPEED_SHARE:.0%} of the {limit:g} rad/s limit (at rest, or a "
+                "command too small to pass the friction); record the standard test command")
+    if floor.fitness > MAX_FLOOR_SHARE:
+        return (f"the recording is mostly noise: its noise floor is {floor.fitness:.2g} of the "
+                f"filtered signal's energy (at most {MAX_FLOOR_SHARE:g}), so no fit can be told "
+                "from another")
+    return None
 
 
 def correlation_length(residual: np.ndarray, blocks: list[int]) -> float:
@@ -362,7 +394,11 @@ def assess(objective: Objective, trace, values: dict[str, float], fitness: float
             interval[name] = quantity_interval(name, values[name], standard_error[name])
     linear = {name: s for name, s in linear.items() if name not in plane}
     inconclusive = {}
+    why_not = uninformative(objective, trace, floor)
     for fault in estimated:
+        if why_not is not None:
+            inconclusive[fault] = why_not
+            continue
         if not floor.explained:
             inconclusive[fault] = (f"the Monitor does not explain the recording: fitness "
                                    f"{fitness:.3g} is {floor.ratio:.0f} x the recording's noise "

@@ -19,6 +19,13 @@ def _finite(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
 
 
+#: Inspections with the fault detected that a growth law needs: from one detection (a step
+#: from nominal to faulty) any law is a guess, and the bootstrap's interval only reflects the
+#: inspections' own scatter (0, 500, 1000 h with the last one faulty gave "111 h, 90 %:
+#: 107-116 h").
+MIN_DETECTED = 2
+
+
 def analyse(table: HistoryTable, params: Parameters, law: str = "auto") -> dict:
     """The trend.json content of a history (see :mod:`emaprog.prognosis.fit` for the method).
 
@@ -51,6 +58,12 @@ def analyse(table: HistoryTable, params: Parameters, law: str = "auto") -> dict:
             entry["truth"] = table.truth[fault].tolist()
         faults[fault] = entry
         if not detected.size:
+            continue
+        if detected.size < MIN_DETECTED:
+            entry["status"] = "insufficient history"
+            entry["note"] = (f"detected at {detected.size} inspection(s) only: a growth law and "
+                             f"its remaining useful life rest on at least {MIN_DETECTED} "
+                             "inspections with the fault detected; inspect again")
             continue
         floor = inspection_sigma(table, fault)
         last = predict(usage, s, limits.failure, law, seed=index, noise_floor=floor)

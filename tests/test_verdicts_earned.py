@@ -1,0 +1,70 @@
+"""No verdict from a recording that cannot support one: at rest, too short, mostly noise;
+and the report names a faulty phase only beside a flagged short circuit."""
+
+from __future__ import annotations
+
+import pytest
+
+import emaprog
+from emaprog.config.scenario import load_scenario
+
+from .conftest import CONFIGS
+
+
+def report_of(name: str, **update):
+    scenario = load_scenario(CONFIGS / f"{name}.yaml")
+    data = scenario.model_dump(mode="json")
+    for key, value in update.items():
+        data[key] = value
+    return emaprog.identify(emaprog.simulate(scenario.model_validate(data)))
+
+
+def test_at_rest_every_fault_is_inconclusive_with_its_reason():
+    """Command 0 for 0.5 s, the shipped sensor noise only: nothing is excited (peak motor
+    speed far under 5 % of the limit), so no verdict; before, a 'degraded' short circuit."""
+    report = report_of("chirp-nominal", command={"kind": "constant", "offset": 0.0})
+    assert set(report.health.values()) == {"inconclusive"}
+    why = report.data["confidence"]["inconclusive"]
+    assert all("does not excite" in reason for reason in why.values()), why
+    assert report.data["short_circuit_phase"] is None
+
+
+def test_a_recording_too_short_to_judge_gets_no_verdict():
+    """The Fig. 10 unit for 0.1 s (friction read 3.79 for 1.8 before): inconclusive, 'too short'."""
+    report = report_of("fig10-multiple-faults", duration=0.1)
+    assert set(report.health.values()) == {"inconclusive"}
+    assert all("too short" in r for r in report.data["confidence"]["inconclusive"].values())
+
+
+@pytest.mark.slow
+def test_a_healthy_unit_names_no_faulty_phase():
+    """All verdicts nominal: no phase, no phase confidence (report.json and report.md)."""
+    from emaprog.report import report_markdown
+
+    report = report_of("chirp-nominal")
+    assert set(report.health.values()) == {"nominal"}
+    assert report.data["short_circuit_phase"] is None
+    assert report.data["confidence"]["isolation"] is None
+    data = {**report.data, "figures": {"fit": "fit.png", "convergence": "convergence.png"}}
+    text = report_markdown(data)
+    assert "no faulty phase named" in text and "Confidence in phase" not in text
+
+
+def test_a_fault_seen_at_one_inspection_gets_no_remaining_useful_life(tmp_path):
+    """Reports at 0, 500 and 1000 h, only the last with friction 1.6 (a step, not a trend):
+    'insufficient history' and no RUL interval (before: 111 h, 90 %: 107-116 h)."""
+    import json
+
+    import pandas as pd
+
+    table = pd.DataFrame({"actuator": ["ema-7"] * 3, "usage": [0.0, 500.0, 1000.0],
+                          "friction": [1.01, 0.99, 1.6], "backlash": [0.0] * 3,
+                          "short_circuit_a": [0.0] * 3, "short_circuit_b": [0.0] * 3,
+                          "short_circuit_c": [0.0] * 3, "eccentricity_zeta": [0.0] * 3})
+    table.to_parquet(tmp_path / "history.parquet")
+    result = emaprog.trend(tmp_path / "history.parquet", tmp_path / "trend")
+    friction = result.faults["friction"]
+    assert friction["status"] == "insufficient history" and friction["detected_at"] == 1000.0
+    assert friction["rul"] == {"median": None, "low": None, "high": None}
+    assert "insufficient history" in (tmp_path / "trend" / "trend.md").read_text()
+    assert json.loads((tmp_path / "trend" / "trend.json").read_text())["faults"]["friction"]["note"]
