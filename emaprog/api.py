@@ -32,7 +32,7 @@ from .identification.confidence import confidence_record
 from .identification.defaults import resolve as resolve_settings
 from .identification.objective import low_pass
 from .identification import result as verdicts
-from .io.recordings import check_at_rest
+from .io.recordings import check_at_rest, check_plausible
 from .io.storage import (
     Trace, frame_of, read_trace, trace_of, writable_output, write_json, write_trace,
 )
@@ -214,6 +214,7 @@ def _measured(path: Path, columns: str | Path | None, params: Parameters | None)
     else:
         trace = read_recording(path, load_column_map(columns), params, columns)
     if params is not None:
+        check_plausible(trace, params, path)
         check_at_rest(trace, params, path)
     return trace
 
@@ -338,6 +339,7 @@ def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = 
                                 measured.metadata, params, nuisances)
     settings = resolved.settings
     check_sampling(measured, str(source))
+    check_plausible(measured, params, source)
     check_at_rest(measured, params, source)
     load, load_note = _load_of(embedded, chosen, settings)
     inp = inputs_from_trace(measured, params.spec.controller.rate, load)

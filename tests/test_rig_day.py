@@ -299,3 +299,25 @@ def test_a_recording_that_starts_in_motion_is_refused(tmp_path):
                   "-o", str(tmp_path / "rep")])
     assert result.exit_code == 2 and "starts in motion" in result.output, result.output
     assert not (tmp_path / "rep").exists()
+
+
+@pytest.mark.parametrize("edit,channel,fragment", [
+    ({"speed": {"column": "MotSpd_rpm", "unit": "rpm", "sign": -1}}, "speed", "sign is inverted"),
+    ({"speed": {"column": "MotSpd_rpm", "unit": "rpm", "scale": 60 / (2 * 3.141592653589793)}},
+     "speed", "rpm mapped as rad/s?"),
+    ({"position": {"column": "Pos_deg", "unit": "deg", "sign": -1}}, "position", "inverted"),
+    ({"current_b": {"column": "Ib_mA", "unit": "mA", "scale": 1000.0}}, "current", "mA mapped as A?"),
+])
+def test_mis_mapped_channels_are_named_before_fitting(tmp_path, edit, channel, fragment):
+    """A flipped sign or a wrong unit (here stated through scale/sign, as a units row would
+    catch a plain unit): identify exits 2 before fitting, naming the channel and the
+    evidence, nothing written. The
+    shipped map passes (speed 0.98 x the position's derivative times the gear ratio)."""
+    mapping = {**yaml.safe_load((RIG / "logger.yaml").read_text()), **edit}
+    path = tmp_path / "map.yaml"
+    path.write_text(yaml.safe_dump(mapping))
+    result = run(["identify", str(RIG / "inspection-1500h.csv"), "--columns", str(path),
+                  "-o", str(tmp_path / "rep")])
+    assert result.exit_code == 2, result.output
+    assert channel in result.output and fragment in result.output, result.output
+    assert not (tmp_path / "rep").exists()

@@ -398,6 +398,69 @@ def phase_identity(trace_columns: dict[str, np.ndarray], params: Parameters,
             "angle": "motor_angle" if "motor_angle" in trace_columns else "integrated speed"}
 
 
+#: Ratios of a recorded channel to what the other channels say it should be, and the
+#: mapping mistake each one points to (:func:`check_plausible`).
+_SUSPECTS = ((60.0 / (2.0 * math.pi), "rpm mapped as rad/s?"), (2.0 * math.pi / 60.0, "rad/s mapped as rpm?"),
+             (180.0 / math.pi, "deg/s mapped as rad/s?"), (math.pi / 180.0, "rad/s mapped as deg/s?"),
+             (6.0, "rpm mapped as deg/s?"), (1.0 / 6.0, "deg/s mapped as rpm?"),
+             (-1.0, "the sign is inverted (sign: -1)?"))
+#: [-] how far a channel may be from what the others say before the map is suspected.
+PLAUSIBLE_RATIO = 0.3
+
+
+def _suspect(ratio: float) -> str:
+    best = min(_SUSPECTS, key=lambda s: abs(math.log(abs(ratio) / abs(s[0])))
+               + (0.0 if math.copysign(1.0, ratio) == math.copysign(1.0, s[0]) else 10.0))
+    close = abs(ratio / best[0] - 1.0) < PLAUSIBLE_RATIO
+    return best[1] if close else "a unit, scale or sign in the map is wrong?"
+
+
+def check_plausible(trace: Trace, params: Parameters, path) -> None:
+    """Before fitting: the mapped channels agree with each other and with the parameter set.
+
+    The position against the command it follows, the recorded motor speed against the
+    derivative of the motor angle (or of the surface position times the gear ratio), and the
+    current's peak against the drive's current limit; the channel most likely mis-mapped is
+    named with the evidence (exit 2). Only for rig recordings (read through a column map).
+    """
+    meta = trace.metadata or {}
+    if meta.get("model") != "recording" or not meta.get("column_map"):
+        return
+    out = trace.columns
+    speed_source = meta.get("speed", "recorded")
+    mapped = {k: Column.model_validate(v) for k, v in meta["column_map"].items()
+              if k in KIND and v is not None}
+    limit = params.spec.controller.speed_limit
+    gear = params.spec.mechanical.gear_ratio
+    time = out["time"]
+    command, position = out["command"], out["position"]
+    if float(np.ptp(command)) > 0 and float(np.ptp(position)) > 0:
+        c, q = command - command.mean(), position - position.mean()
+        ratio = float(np.dot(q, c) / max(np.dot(c, c), 1e-300))
+        if ratio < 0 or not 0.1 < ratio < 10.0:
+            key = "position"
+            raise InputError(path, f"position is {ratio:.3g} x the command it follows: "
+                             f"{'the sign of position or command is inverted (sign: -1)?' if ratio < 0 else 'a unit or scale of position or command is wrong (deg, rad, mrad)?'}"
+                             f" (column '{mapped[key].column}')", key)
+    if speed_source == "recorded" and time.size > 20:
+        angle = out["motor_angle"] if "motor_angle" in out else gear * out["position"]
+        derived = derived_speed(time, angle, "motor_angle" if "motor_angle" in out else "position")
+        if float(np.sqrt(np.mean(derived ** 2))) > 0.02 * limit:
+            ratio = float(np.dot(out["speed"], derived) / np.dot(derived, derived))
+            if abs(ratio - 1.0) > PLAUSIBLE_RATIO:
+                source = "motor_angle" if "motor_angle" in out else f"position x gear ratio {gear:g}"
+                raise InputError(path, f"speed is {ratio:.3g} x d({source})/dt: "
+                                 f"{_suspect(ratio)} (column '{mapped['speed'].column}')",
+                                 "speed")
+    current_limit = params.spec.electrical.current_limit
+    keys = [k for k in ("current", *PHASE_COLUMNS) if k in mapped and k in out]
+    peak = max(float(np.max(np.abs(out[k]))) for k in keys)
+    if peak > 3.0 * current_limit:
+        raise InputError(path, f"the current reaches {peak:.4g} A, over 3 x the drive's "
+                         f"{current_limit:g} A limit: mA mapped as A? (column "
+                         f"'{mapped[keys[0]].column}')", f"{keys[0]}.unit")
+
+
 def read_recording(path: str | Path, columns: ColumnMap, params: Parameters,
                    map_file: str | Path | None = None) -> Trace:
     """A rig recording as a contract trace (module docstring); any problem is an InputError."""
