@@ -210,13 +210,8 @@ def _measured(path: Path, columns: str | Path | None, params: Parameters | None)
     from .io.recordings import load_column_map, read_recording
 
     if columns is None:
-        trace = read_trace(path)
-    else:
-        trace = read_recording(path, load_column_map(columns), params, columns)
-    if params is not None:
-        check_plausible(trace, params, path)
-        check_at_rest(trace, params, path)
-    return trace
+        return read_trace(path)
+    return read_recording(path, load_column_map(columns), params, columns)
 
 
 def _commissioning_residuals(params: Parameters) -> list:
@@ -268,12 +263,14 @@ def commission(recordings: list[str | Path], output: str | Path, *,
 
     if not recordings:
         raise InputError("commission", "give at least one recording of the healthy unit")
-    writable_output(output, "file", force, guarded=("unit",))
+    writable_output(output, "file", force, protected=True)
     base = _parameters(parameters, None, None, "--parameters")
     prepared = []
     for path in map(Path, recordings):
         trace = _measured(path, columns, base)
         check_sampling(trace, str(path))
+        check_plausible(trace, base, path)
+        check_at_rest(trace, base, path)
         prepared.append(commissioning.prepare(trace, str(path), base))
     result = commissioning.fit(prepared, base)
     commissioning.check_explained(result, prepared)
@@ -315,7 +312,7 @@ def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = 
     With ``output``, report.json, report.md and the figures are written there.
     """
     if output is not None:
-        writable_output(output, "folder", force, guarded=REPORT_FILES)
+        writable_output(output, "folder", force, protected=REPORT_FILES)
     chosen = load_scenario(scenario) if scenario is not None else None
     if isinstance(trace, pd.DataFrame):
         source: str | Path = "trace (DataFrame)"
@@ -440,8 +437,8 @@ def _name_phases_as_recorded(data: dict, identity: dict | None) -> None:
         isolation["phase"], isolation["runner_up"] = (rename[isolation["phase"]],
                                                       rename[isolation["runner_up"]])
     errors = data["confidence"]["standard_error"]
-    moved = {f"{PHASE_FAULT}_{rename[w]}": errors.get(f"{PHASE_FAULT}_{w}") for w in rename}
-    errors.update({k: v for k, v in moved.items() if k in errors or v is not None})
+    if f"{PHASE_FAULT}_a" in errors:
+        errors.update({f"{PHASE_FAULT}_{rename[w]}": errors[f"{PHASE_FAULT}_{w}"] for w in rename})
 
 
 def _load_of(embedded: Scenario | None, chosen: Scenario | None, settings: IdentifySettings):

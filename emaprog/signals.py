@@ -89,3 +89,10 @@ def command_start(time: np.ndarray, command: np.ndarray) -> float:
         return 0.0
     still = np.flatnonzero(np.abs(command[: away[0]] - command[0]) <= 1e-9 * span + 1e-15)
     return float(time[still[-1]] - time[0]) if still.size else 0.0
+
+
+def head_samples(time: np.ndarray, seconds: float = 1e-3) -> int:
+    """How many samples from the first one cover ``seconds`` (at least 2): the stretch over
+    which a recording's starting state (at rest, loaded, at its command) is judged."""
+    time = np.asarray(time, dtype=np.float64)
+    return max(2, int(np.searchsorted(time, time[0] + seconds)))

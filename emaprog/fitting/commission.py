@@ -41,7 +41,7 @@ from ..identification.confidence import correlation_length, information_inverse
 from ..identification.objective import (
     FILTER_SECONDS, STARTUP_SECONDS, filter_lag, fine_plant, low_pass,
 )
-from ..io.recordings import derived_speed
+from ..io.recordings import derived_speed, speed_source_of
 from ..io.storage import Trace
 from ..kernels.monitor import simulate_monitor
 from ..kernels.structs import MonitorOutputs, Plant
@@ -144,7 +144,7 @@ def prepare(trace: Trace, source: str, params: Parameters) -> Recording:
     mask = np.ones(trace.time.size, bool)
     mask[: round(STARTUP_SECONDS * recording_rate)] = False
     scales = np.array([max(float(np.sqrt(np.mean(m[mask] ** 2))), 1e-12) for m in measured])
-    derived = str((trace.metadata or {}).get("speed", "")).startswith("derived from position")
+    derived = speed_source_of(trace) == "position"
     return Recording(source, trace, inputs, instants, measured, scales, mask, derived)
 
 

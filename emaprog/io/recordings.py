@@ -38,7 +38,7 @@ from .. import __version__
 from ..config.parameters import Parameters
 from ..config.yamlfile import load_mapping
 from ..errors import InputError, from_validation_error
-from ..signals import command_start
+from ..signals import command_start, head_samples
 from .dialects import CsvOptions, read_text_table, unit_of
 from .storage import COLUMNS, Trace, check_columns
 
@@ -335,7 +335,7 @@ def check_at_rest(trace: Trace, params: Parameters, path) -> None:
     if (trace.metadata or {}).get("model") in ("reference", "monitor"):
         return
     time, speed = trace.time, trace["speed"]
-    head = speed[: max(2, int(np.searchsorted(time, time[0] + 1e-3)))]
+    head = speed[: head_samples(time)]
     limit = AT_REST_SHARE * params.spec.controller.speed_limit
     moving = abs(float(np.mean(head)))
     if moving > limit:
@@ -383,7 +383,8 @@ def phase_identity(trace_columns: dict[str, np.ndarray], params: Parameters,
     model_idle = IDLE_PHASE[sector]
     currents = np.abs(np.vstack([trace_columns[k] for k in PHASE_COLUMNS]))
     magnitude = currents.sum(axis=0) / 2.0
-    conducting = magnitude > 3.0 * max(float(np.median(magnitude)) * 0.1, 1e-9)
+    # samples carrying current: the idle phase is the smallest only where the pair conducts
+    conducting = magnitude > max(0.3 * float(np.median(magnitude)), 1e-9)
     observed = np.argmin(currents, axis=0)
     scores = {}
     for perm in permutations(range(3)):  # perm[model winding] = recorded channel index
@@ -415,6 +416,12 @@ def _suspect(ratio: float) -> str:
     return best[1] if close else "a unit, scale or sign in the map is wrong?"
 
 
+def speed_source_of(trace: Trace) -> str:
+    """Where a trace's speed comes from: ``recorded``, ``motor_angle`` or ``position``."""
+    speed = (trace.metadata or {}).get("speed")
+    return speed.get("source", "recorded") if isinstance(speed, dict) else "recorded"
+
+
 def check_plausible(trace: Trace, params: Parameters, path) -> None:
     """Before fitting: the mapped channels agree with each other and with the parameter set.
 
@@ -427,7 +434,7 @@ def check_plausible(trace: Trace, params: Parameters, path) -> None:
     if meta.get("model") != "recording" or not meta.get("column_map"):
         return
     out = trace.columns
-    speed_source = meta.get("speed", "recorded")
+    speed_source = speed_source_of(trace)
     mapped = {k: Column.model_validate(v) for k, v in meta["column_map"].items()
               if k in KIND and v is not None}
     limit = params.spec.controller.speed_limit
@@ -477,16 +484,17 @@ def read_recording(path: str | Path, columns: ColumnMap, params: Parameters,
     t0 = float(time[0])
     out["time"] = time - t0
     if "speed" in out:
-        speed_source = "recorded"
+        speed = {"source": "recorded", "note": "recorded"}
     else:
         source = "motor_angle" if "motor_angle" in out else "position"
         gear = params.spec.mechanical.gear_ratio
         angle = out["motor_angle"] if source == "motor_angle" else gear * out["position"]
         out["speed"] = derived_speed(out["time"], angle, source)
-        speed_source = (("derived from motor_angle" if source == "motor_angle" else
-                         f"derived from position x gear ratio {gear:g}")
-                        + f" (Savitzky-Golay derivative, order {SPEED_ORDER}, "
-                        f"{SPEED_WINDOW_SECONDS[source] * 1e3:g} ms window)")
+        speed = {"source": source,
+                 "note": (("derived from motor_angle" if source == "motor_angle" else
+                           f"derived from position x gear ratio {gear:g}")
+                          + f" (Savitzky-Golay derivative, order {SPEED_ORDER}, "
+                          f"{SPEED_WINDOW_SECONDS[source] * 1e3:g} ms window)")}
     if "current" in out:
         how = "recorded"
     else:
@@ -509,7 +517,7 @@ def read_recording(path: str | Path, columns: ColumnMap, params: Parameters,
         "column_map_file": str(Path(map_file).resolve()) if map_file is not None else None,
         "time_offset": t0,
         "equivalent_current": how,
-        "speed": speed_source,
+        "speed": speed,
         "command_start": command_start(checked["time"], checked["command"]),
         "sample_rate": float(1.0 / np.median(np.diff(checked["time"]))),
         "parameter_file": params.source_file,

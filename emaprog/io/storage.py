@@ -222,13 +222,13 @@ def write_json(path: str | Path, data: dict) -> Path:
 
 
 def writable_output(path: str | Path, kind: str, force: bool = False,
-                    guarded: tuple[str, ...] = ()) -> Path:
+                    protected: tuple[str, ...] | bool = ()) -> Path:
     """Refuse, before any work, an output that cannot be written (exit 2 naming it).
 
     ``kind`` ``file``: not an existing folder; ``folder``: not an existing file. Without
-    ``force`` an existing file (``kind`` file) or an existing folder holding one of
-    ``guarded`` (its results) is refused rather than overwritten. The nearest existing
-    parent must be a writable folder; nothing is created here.
+    ``force`` a protected output that exists is refused rather than overwritten:
+    ``protected=True`` for a file (a unit set), or the names of the results a folder holds
+    (a report). The nearest existing parent must be a writable folder; nothing is created.
     """
     path = Path(path)
     if kind == "file" and path.is_dir():
@@ -237,9 +237,11 @@ def writable_output(path: str | Path, kind: str, force: bool = False,
     if kind == "folder" and path.exists() and not path.is_dir():
         raise InputError(path, "is an existing file; give a folder to write the results in",
                          "--output")
-    if not force:
-        existing = ([path] if kind == "file" and path.is_file() and guarded else
-                    [path / name for name in guarded if (path / name).exists()])
+    if not force and protected:
+        if protected is True:
+            existing = [path] if path.is_file() else []
+        else:
+            existing = [path / name for name in protected if (path / name).exists()]
         if existing:
             raise InputError(existing[0], "exists already; it is not overwritten without "
                              "--force (or choose another --output)", "--output")

@@ -47,7 +47,7 @@ def starts_loaded(trace) -> bool:
     from phase currents is least sure at rest."""
     current = np.asarray(trace["current"], dtype=np.float64)
     time = np.asarray(trace.time, dtype=np.float64)
-    n = max(2, int(np.searchsorted(time, time[0] + 1e-3)))
+    n = signals.head_samples(time)
     head = float(np.mean(np.abs(current[:n])))
     sigma = signals.noise_sigma(current, 0.0)
     return head > max(4.0 * sigma, 0.05 * float(np.sqrt(np.mean(current ** 2))))
@@ -70,7 +70,7 @@ def settle_lead(trace, rate: float) -> int:
     command = np.asarray(trace["command"], dtype=np.float64)
     position = np.asarray(trace["position"], dtype=np.float64)
     span = max(float(np.ptp(command)), 1e-9)
-    n = max(2, int(np.searchsorted(trace.time, trace.time[0] + 1e-3)))
+    n = signals.head_samples(trace.time)
     at_command = abs(float(np.mean(position[:n])) - float(command[0])) <= max(
         0.01 * span, 5.0 * signals.noise_sigma(position, 0.0) / math.sqrt(n))
     at_zero = abs(float(command[0])) <= 1e-3 * span
