@@ -205,13 +205,23 @@ class Commissioned:
     residual: float
 
 
-def _measured(path: Path, columns: str | Path | None, params: Parameters | None) -> Trace:
-    """A contract trace file, or with a column map a rig recording read through it."""
+def _measured(path: Path, columns: str | Path | None, params: Parameters | None,
+              test: Scenario | None = None) -> Trace:
+    """A contract trace file, or with a column map a rig recording read through it; ``test``:
+    the scenario whose command a recording without a command channel ran (placed in time
+    by its response, :mod:`emaprog.models.alignment`)."""
     from .io.recordings import load_column_map, read_recording
 
     if columns is None:
         return read_trace(path)
-    return read_recording(path, load_column_map(columns), params, columns)
+    command_of = None
+    if test is not None:
+        from .models.alignment import align_command
+
+        def command_of(time, position):
+            found = align_command(test, params, time, position)
+            return found.command, found.note
+    return read_recording(path, load_column_map(columns), params, columns, command_of)
 
 
 def _commissioning_residuals(params: Parameters) -> list:
@@ -247,10 +257,11 @@ def _commissioning_residuals(params: Parameters) -> list:
 
 def commission(recordings: list[str | Path], output: str | Path, *,
                parameters: str | Path | None = None, columns: str | Path | None = None,
-               force: bool = False) -> Commissioned:
+               scenario: str | Path | None = None, force: bool = False) -> Commissioned:
     """Fit a unit's own parameter set from recordings of it while healthy (SPEC 11).
 
-    ``recordings``: contract traces (Parquet) or, with ``columns``, rig recordings.
+    ``recordings``: contract traces (Parquet) or, with ``columns``, rig recordings;
+    ``scenario``: the test command of recordings without a command channel.
     Writes ``output`` (a complete parameter set YAML with a ``commissioning`` section:
     recordings and hashes, base set, fitted values with standard errors, residuals,
     parameters held at the base value). The base set (``parameters``, default
@@ -265,9 +276,10 @@ def commission(recordings: list[str | Path], output: str | Path, *,
         raise InputError("commission", "give at least one recording of the healthy unit")
     writable_output(output, "file", force, protected=True)
     base = _parameters(parameters, None, None, "--parameters")
+    test = load_scenario(scenario) if scenario is not None else None
     prepared = []
     for path in map(Path, recordings):
-        trace = _measured(path, columns, base)
+        trace = _measured(path, columns, base, test)
         check_sampling(trace, str(path))
         check_plausible(trace, base, path)
         check_at_rest(trace, base, path)
@@ -323,7 +335,7 @@ def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = 
         if columns is not None:
             replayed = (_parameters(parameters, chosen.parameters, Path(scenario).parent, scenario)
                         if chosen is not None else _parameters(parameters, None, None, "--parameters"))
-        measured = _measured(source, columns, replayed)
+        measured = _measured(source, columns, replayed, chosen)
     embedded = _trace_scenario(measured, source)
     basis = chosen or embedded
     if chosen is not None:

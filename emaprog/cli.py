@@ -31,7 +31,8 @@ EXIT_REGRESSED = 3
 OutputDir = Annotated[Optional[Path], typer.Option("--output", "-o", help="Output folder.")]
 ScenarioOption = Annotated[
     Optional[Path],
-    typer.Option("--scenario", "-s", help="Scenario YAML whose identify: block (and parameter set) to use."),
+    typer.Option("--scenario", "-s", help="Scenario YAML whose identify: block and parameter set to "
+                 "use; for a recording without a command channel, its test command."),
 ]
 ParametersOption = Annotated[
     str, typer.Option("--parameters", "-p", help="Parameter set: shipped name or path to a YAML file.")
@@ -172,13 +173,17 @@ def commission(
     parameters: Annotated[Optional[str], typer.Option(
         "--parameters", "-p", help="Base parameter set (shipped name or YAML path); default: default.")] = None,
     columns: ColumnsOption = None,
+    scenario: Annotated[Optional[Path], typer.Option(
+        "--scenario", "-s", help="The test command as a scenario, for recordings without a "
+        "command channel (placed in time by the response).")] = None,
     force: ForceOption = False,
 ):
     """Fit a unit's own parameter set (inertias, friction, viscous, R, k_e, L, stiffness)."""
     from . import api
     _say_if_compiling()
 
-    unit = api.commission(recordings, output, parameters=parameters, columns=columns, force=force)
+    unit = api.commission(recordings, output, parameters=parameters, columns=columns,
+                          scenario=scenario, force=force)
     for name, entry in unit.fitted.items():
         typer.echo(f"  {name:24s} {entry['value']:.5g} (base {entry['base']:.5g}, "
                    f"x{entry['value'] / entry['base']:.3f} +- {entry['standard_error'] / entry['base']:.1%})")

@@ -142,7 +142,9 @@ def preroll_frames(seconds: float = 0.05) -> dict[str, pd.DataFrame]:
 
 
 def variant(kind: str, name: str, folder: Path) -> Path:
-    frame = preroll_frames()[name] if kind == "preroll" else logger_frame(name)
+    frame = preroll_frames()[name] if kind in ("preroll", "no-command") else logger_frame(name)
+    if kind == "no-command":
+        return write_logger(frame.drop(columns=["Cmd_deg"]), folder / name)
     if kind == "no-speed":
         return write_logger(frame.drop(columns=["MotSpd_rpm"]), folder / name)
     if kind == "european":
@@ -163,19 +165,24 @@ def column_map(folder: Path, drop=()) -> Path:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("kind", ["no-speed", "european", "preroll", "swapped"])
+@pytest.mark.parametrize("kind", ["no-speed", "european", "preroll", "swapped", "no-command"])
 def test_other_loggers_are_identified_with_the_documented_commands(tmp_path, kind):
     """The same unit through the README's commission and identify, recorded as other loggers
     write it. Swapping the Ia and Ib columns names the short on phase A, the channel now
-    holding the shorted winding's current; the others name B."""
-    mapping = column_map(tmp_path, drop=("speed",) if kind == "no-speed" else ())
+    holding the shorted winding's current; the others name B. Without a command channel
+    (and a 50 ms pre-roll) the test command comes from --scenario, placed by the response:
+    its start within 0.2 ms (two samples) of the truth."""
+    drop = {"no-speed": ("speed",), "no-command": ("command",)}.get(kind, ())
+    mapping = column_map(tmp_path, drop=drop)
+    test = ["--scenario", str(RIG / "test-command.yaml")] if kind == "no-command" else []
     healthy = [variant(kind, n, tmp_path) for n in ("healthy-20Nm.csv", "healthy-40Nm.csv")]
     inspection = variant(kind, "inspection-1500h.csv", tmp_path)
     unit = tmp_path / "unit.yaml"
-    result = run(["commission", *map(str, healthy), "--columns", str(mapping), "-o", str(unit)])
+    result = run(["commission", *map(str, healthy), "--columns", str(mapping), "-o", str(unit),
+                  *test])
     assert result.exit_code == 0, result.output
     result = run(["identify", str(inspection), "--columns", str(mapping), "-p", str(unit),
-                  "-o", str(tmp_path / "report")])
+                  "-o", str(tmp_path / "report"), *test])
     assert result.exit_code == 0, result.output
     report = json.loads((tmp_path / "report" / "report.json").read_text())
     truth = dict(TRUTH["inspection-1500h.csv"])
@@ -189,6 +196,17 @@ def test_other_loggers_are_identified_with_the_documented_commands(tmp_path, kin
         "Ia_mA" if kind == "swapped" else "Ib_mA")
     low, high = report["nuisance_interval"]["hinge_moment"]
     assert low <= 30.0 <= high
+    if kind == "no-command":
+        from emaprog.config import parameters
+        from emaprog.config.scenario import load_scenario
+        from emaprog.models.alignment import align_command
+
+        params = parameters.load(str(unit))
+        frame = pd.read_csv(inspection, skiprows=[1])
+        found = align_command(load_scenario(RIG / "test-command.yaml"), params,
+                              frame["Time_ms"].to_numpy() * 1e-3,
+                              np.radians(frame["Pos_deg"].to_numpy()))
+        assert abs(found.delay - 0.05) < 2e-4 and found.delay_error < 2e-4, found
 
 
 @pytest.mark.parametrize("edit,channel,fragment", [

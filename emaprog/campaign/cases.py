@@ -226,6 +226,11 @@ def commission_case(spec: CaseSpec,
     row = {f"commission_err_{k}": float(v / true[k] - 1.0) for k, v in fit.values.items()}
     row["commission_err_hinge_moment"] = float(fit.hinge_moments[0] - spec.commission.hinge_moment)
     row["commission_undetermined"] = ",".join(fit.not_determined)
+    # the fit's own (linearised) relative standard errors, NaN where held: what the
+    # commissioning model-error floors are calibrated from (benchmarks/commission_errors.py)
+    row.update({f"commission_se_{k}": float(fit.standard_errors[k] / v) if k in fit.standard_errors
+                else float("nan") for k, v in fit.values.items()})
+    row["commission_se_hinge_moment"] = float(fit.hinge_errors[0])
     residual = recording_residual(recording, prepared.inputs, commissioned, fit.hinge_moments[0],
                                   f"case {spec.case_id} commissioning")
     return commissioned, row, residual

@@ -28,7 +28,7 @@ from __future__ import annotations
 import hashlib
 import math
 from pathlib import Path
-from typing import Any, Literal, Optional
+from typing import Any, Callable, Literal, Optional
 
 import numpy as np
 from pydantic import (BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator,
@@ -468,21 +468,34 @@ def check_plausible(trace: Trace, params: Parameters, path) -> None:
                          f"'{mapped[keys[0]].column}')", f"{keys[0]}.unit")
 
 
+#: ``command_of(time, position) -> (command, note)``: the test command at the recorded
+#: instants when the recording has no command channel (``models.alignment``).
+CommandOf = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, str]]
+
+
 def read_recording(path: str | Path, columns: ColumnMap, params: Parameters,
-                   map_file: str | Path | None = None) -> Trace:
-    """A rig recording as a contract trace (module docstring); any problem is an InputError."""
+                   map_file: str | Path | None = None, command_of: CommandOf | None = None
+                   ) -> Trace:
+    """A rig recording as a contract trace (module docstring); any problem is an InputError.
+
+    Without a mapped ``command``, ``command_of`` supplies it (a scenario's test command
+    placed by the response); without either the recording is refused."""
     path = Path(path)
     kind, raw, layout = _raw_columns(path, columns)
     mapped = columns.mapped()
     if layout.get("units_row"):
         check_unit_row(layout["units_row"], mapped, path)
-    if "command" not in mapped:
-        raise InputError(map_file or path, "maps no command: the test command is needed (map "
-                         "the logger's command channel)", "command")
+    if "command" not in mapped and command_of is None:
+        raise InputError(map_file or path, "maps no command and no test command was given: map "
+                         "the logger's command channel, or give the test command as a scenario "
+                         "with --scenario (it is then placed in time by the response)", "command")
     time = _column(raw, "time", mapped["time"], path, None)
     out = {key: _column(raw, key, spec, path, time) for key, spec in mapped.items() if key != "time"}
     t0 = float(time[0])
     out["time"] = time - t0
+    command_note = "recorded"
+    if "command" not in out:
+        out["command"], command_note = command_of(out["time"], out["position"])
     if "speed" in out:
         speed = {"source": "recorded", "note": "recorded"}
     else:
@@ -518,6 +531,7 @@ def read_recording(path: str | Path, columns: ColumnMap, params: Parameters,
         "time_offset": t0,
         "equivalent_current": how,
         "speed": speed,
+        "command": command_note,
         "command_start": command_start(checked["time"], checked["command"]),
         "sample_rate": float(1.0 / np.median(np.diff(checked["time"]))),
         "parameter_file": params.source_file,
