@@ -398,6 +398,7 @@ def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = 
         "emaprog_version": __version__,
     }
     _name_phases_as_recorded(data, (measured.metadata or {}).get("phase_identity"))
+    _check_phase_identity(data, params)
     if output is None:
         return Report.from_data(data)
     from .report import plot_convergence, plot_fit, report_markdown
@@ -451,6 +452,27 @@ def _name_phases_as_recorded(data: dict, identity: dict | None) -> None:
     errors = data["confidence"]["standard_error"]
     if f"{PHASE_FAULT}_a" in errors:
         errors.update({f"{PHASE_FAULT}_{rename[w]}": errors[f"{PHASE_FAULT}_{w}"] for w in rename})
+
+
+def _check_phase_identity(data: dict, params: Parameters) -> None:
+    """Compare the inspection's channel-to-winding identity with the unit's commissioning
+    recordings' (``phase_identity.commissioning``): a rewired or re-mapped logger is said."""
+    record = params.spec.commissioning
+    found = data.get("phase_identity")
+    if record is None or not found or not found.get("trusted"):
+        return
+    known = [r.phase_identity for r in record.recordings
+             if r.phase_identity and r.phase_identity.get("trusted")]
+    if not known:
+        return
+    same = all(k["channels"] == found["channels"] for k in known)
+    found["commissioning"] = (
+        "agrees with the unit's commissioning recordings" if same else
+        "DIFFERS from the unit's commissioning recordings (commissioning: "
+        + ", ".join(f"winding {w} on {c}" for w, c in known[0]["channels"].items())
+        + "; now: " + ", ".join(f"winding {w} on {c}" for w, c in found["channels"].items())
+        + "): the logger was rewired or the map changed; the phase is named as this "
+          "recording's channels say")
 
 
 def _load_of(embedded: Scenario | None, chosen: Scenario | None, settings: IdentifySettings):

@@ -178,6 +178,9 @@ def _phase_sentence(report: dict) -> str:
     channel = (report.get("phase_channels") or {}).get(phase)
     named = f"{phase.upper()}" + (f" (logger channel `{channel}`)" if channel else "")
     sentence = f"Faulty phase (largest shorted fraction): {named}."
+    check = (report.get("phase_identity") or {}).get("commissioning")
+    if check:
+        sentence += f" Channel identity {check}."
     if isolation is not None:
         sentence += (f" Confidence in phase {isolation['phase'].upper()} against phase "
                      f"{isolation['runner_up'].upper()}: {isolation['confidence']:.1%} "

@@ -191,6 +191,9 @@ def test_other_loggers_are_identified_with_the_documented_commands(tmp_path, kin
                                                                            "c": 0.0}}}
     assert within_spec(report, truth) == [], within_spec(report, truth)
     assert report["short_circuit_phase"] == ("a" if kind == "swapped" else "b")
+    # swapped in the inspection only (commissioned from the swapped healthy files too): the
+    # identity agrees with the commissioning's
+    assert "agrees" in report["phase_identity"]["commissioning"]
     # the logger column that now holds the shorted winding's current
     assert report["phase_channels"][report["short_circuit_phase"]] == (
         "Ia_mA" if kind == "swapped" else "Ib_mA")
@@ -339,3 +342,21 @@ def test_mis_mapped_channels_are_named_before_fitting(tmp_path, edit, channel, f
     assert result.exit_code == 2, result.output
     assert channel in result.output and fragment in result.output, result.output
     assert not (tmp_path / "rep").exists()
+
+
+@pytest.mark.slow
+def test_a_rewired_logger_is_said_against_the_commissioning(tmp_path):
+    """Commissioned from the plain files, inspected with Ia and Ib swapped: the short is named
+    on A (the channel carrying the shorted winding) and the report says the channel identity
+    differs from the commissioning recordings'."""
+    unit = tmp_path / "unit.yaml"
+    healthy = [str(RIG / n) for n in ("healthy-20Nm.csv", "healthy-40Nm.csv")]
+    assert run(["commission", *healthy, "-c", str(RIG / "logger.yaml"), "-o", str(unit)]).exit_code == 0
+    inspection = variant("swapped", "inspection-1500h.csv", tmp_path)
+    result = run(["identify", str(inspection), "-c", str(RIG / "logger.yaml"), "-p", str(unit),
+                  "-o", str(tmp_path / "rep")])
+    assert result.exit_code == 0, result.output
+    report = json.loads((tmp_path / "rep" / "report.json").read_text())
+    assert report["short_circuit_phase"] == "a"
+    assert "DIFFERS" in report["phase_identity"]["commissioning"]
+    assert "Channel identity DIFFERS" in (tmp_path / "rep" / "report.md").read_text()

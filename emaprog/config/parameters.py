@@ -147,6 +147,9 @@ class CommissioningRecording(_Section):
     hinge_moment_standard_error: NonNeg = Field(description="[N m]")
     residual: dict[str, NonNeg] = Field(description="RMS of the fit residual per signal over the "
                                                     "RMS of the signal [-] (1 ms mean)")
+    phase_identity: Optional[dict] = Field(
+        None, description="which logger channel carried which model winding (rig recordings "
+                          "with three phase currents; docs/reference.md, Rig recordings)")
 
 
 class Commissioning(_Section):

@@ -340,7 +340,8 @@ def unit_set(base: Parameters, fit_result: Fit, recordings: list[Recording], nam
                 "sha256": hashlib.sha256(Path(r.source).read_bytes()).hexdigest()
                 if Path(r.source).is_file() else "",
                 "columns": str(Path(columns).resolve()) if columns is not None else None,
-                "hinge_moment": h, "hinge_moment_standard_error": e, "residual": res}
+                "hinge_moment": h, "hinge_moment_standard_error": e, "residual": res,
+                "phase_identity": (r.trace.metadata or {}).get("phase_identity")}
                for r, h, e, res in zip(recordings, fit_result.hinge_moments,
                                        fit_result.hinge_errors, fit_result.residuals)]
     spec.update(
