@@ -297,7 +297,8 @@ def commission(recordings: list[str | Path], output: str | Path, *,
         tmp.replace(output)
     finally:
         tmp.unlink(missing_ok=True)
-    fitted = {k: {"value": result.values[k], "base": result.base[k], "standard_error": e}
+    fitted = {k: {"value": result.values[k], "base": result.base[k],
+                  "standard_error": commissioning.reported_error(k, result.values[k], e)}
               for k, e in result.standard_errors.items()}
     return Commissioned(output, fitted, result.not_determined, result.degenerate,
                         result.hinge_moments, result.residual)

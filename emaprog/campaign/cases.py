@@ -257,7 +257,7 @@ def run_case(spec: CaseSpec) -> dict:
                                 real_unit=spec.unit is not None or spec.commission is not None
                                 ).settings
     result = identify_trace(trace, inp, params, settings, show_progress=False,
-                            recordings=recordings)
+                            recordings=recordings, commissioned=spec.commission is not None)
     truth = flatten(spec.scenario.faults)
     error = verdicts.errors(result.estimate, truth)
     confidence = result.confidence
@@ -290,6 +290,7 @@ def run_case(spec: CaseSpec) -> dict:
         "floor_ratio": float(confidence.floor.ratio),
         "fault_load": float(confidence.fault_load),
         "twin": bool(confidence.twin),
+        "basis": confidence.basis,
         "isolation_confidence": float(confidence.isolation["confidence"])
         if confidence.isolation else nan,
         "evaluations": int(result.evaluations),
