@@ -1,14 +1,15 @@
 """Calibrate the intervals' model-error laws on finished campaigns.
 
 Each case row of a sweep carries, per quantity, the estimate, the truth, the linearised
-standard error ``sigma`` of the fit, and ``twin``: whether the twin experiment's laws
-apply (:func:`emaprog.identification.confidence.is_twin`) or a unit's. A law
+standard error ``sigma`` of the fit, and ``basis``: whether the twin experiment's laws apply
+(:func:`emaprog.identification.confidence.is_twin`), a unit's own commissioned set's, or those
+of a set not fitted to the unit (``shipped``; campaigns without commissioning). A law
 (:class:`emaprog.faults.ModelError`) makes the interval's standard error
 ``sqrt((factor sigma)^2 + (share d)^2 + (load L)^2)``, ``d`` the estimate's deviation
 from healthy, ``L`` the estimate's fault load (:func:`emaprog.faults.fault_load`), and
 the interval is :func:`emaprog.identification.confidence.quantity_interval`'s.
 
-Per basis (twin, unit) and quantity (each short-circuit phase on its own: on the twins the
+Per basis (twin, unit, shipped) and quantity (each short-circuit phase on its own: on the twins the
 eccentricity pulls a healthy phase C's estimate four times as far as phase B's, 90th
 percentile 0.047 vs 0.010 per unit of zeta; the eccentricity phase counted where the true
 zeta reaches the incipient threshold, as the campaign summary does), the
@@ -48,7 +49,7 @@ import pandas as pd
 
 from emaprog.config import parameters
 from emaprog.faults import CATALOGUE, QUANTITIES, fault_load
-from emaprog.identification.confidence import Z90, quantity_error, quantity_interval
+from emaprog.identification.confidence import BASES, Z90, quantity_error, quantity_interval
 from emaprog.identification.objective import NUISANCE_DEFAULTS
 
 from _output import finish, parser  # the sibling module benchmarks/_output.py
@@ -180,8 +181,9 @@ def calibrate(directories: list[Path]) -> list[dict]:
     incipient = {f.name: getattr(health, f.name).incipient for f in CATALOGUE}
     frames = {str(d): load(d) for d in directories}
     rows = []
-    for twin in (True, False):
-        chosen = {d: f[f["twin"] == twin] for d, f in frames.items()}
+    for basis in BASES:
+        twin = basis == "twin"
+        chosen = {d: f[_basis(f) == basis] for d, f in frames.items()}
         chosen = {d: f for d, f in chosen.items() if len(f)}
         estimated = [n for n in NUISANCE_DEFAULTS
                      if any(f"sigma_{n}" in f and f[f"sigma_{n}"].notna().any()
@@ -191,14 +193,22 @@ def calibrate(directories: list[Path]) -> list[dict]:
             per = {d: c for d, c in per.items() if c.error.size}
             law = fit(pooled(list(per.values())),
                       NUISANCE_FACTORS if name in NUISANCE_DEFAULTS else FACTORS)
-            rows.append(_row(name, twin, law, per))
+            rows.append(_row(name, basis, law, per))
     return rows
 
 
-def _row(name: str, twin: bool, law: tuple[float, float, float],
+def _basis(frame: pd.DataFrame) -> pd.Series:
+    """Each case's basis (:data:`~emaprog.identification.confidence.BASES`); campaigns from
+    before the ``basis`` column: twin, else a unit's own set."""
+    if "basis" in frame:
+        return frame["basis"]
+    return frame["twin"].map({True: "twin", False: "unit"})
+
+
+def _row(name: str, basis: str, law: tuple[float, float, float],
          cases: dict[str, Cases]) -> dict:
-    today = quantity_error(name, twin)
-    row = {"basis": "twin" if twin else "unit", "quantity": name,
+    today = quantity_error(name, basis)
+    row = {"basis": basis, "quantity": name,
            "today": list(today), "proposed": list(law), "campaigns": {}}
     for d, c in cases.items():
         now, new = c.covered(*today), c.covered(*law)

@@ -89,9 +89,11 @@ def test_twin_factors_only_for_the_reference_run_with_the_very_same_values(param
     assert not is_twin(trace, other)
     rig = Trace(trace.columns, {**trace.metadata, "model": "recording"})
     assert not is_twin(rig, params) and not is_twin(Trace(trace.columns, None), params)
-    assert quantity_error("friction", twin=True).factor < quantity_error("friction").factor
+    assert quantity_error("friction", "twin").factor < quantity_error("friction").factor \
+        < quantity_error("friction", "shipped").factor
     # a nuisance has one law, whatever the basis
-    assert quantity_error("hinge_moment") == quantity_error("hinge_moment", twin=True)
+    assert quantity_error("hinge_moment") == quantity_error("hinge_moment", "twin") \
+        == quantity_error("hinge_moment", "shipped")
 
 
 def test_zeta_interval_of_a_healthy_rotor_covers_zero_90_percent_of_the_time():

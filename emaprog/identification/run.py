@@ -16,7 +16,7 @@ from ..numerics import DEFAULT, Numerics, serial_blas
 from ..config.parameters import Parameters
 from ..config.scenario import IdentifySettings
 from ..io.storage import Trace
-from .confidence import Confidence, assess, is_twin
+from .confidence import Confidence, assess, basis_of, is_twin
 from .ga import GAOptions, minimize
 from .objective import (
     NO_CORRECTION, Correction, Objective, ResidualRecording, fine_plant, recording_correction,
@@ -227,8 +227,13 @@ def choose_correction(trace: Trace, inputs: Inputs, params: Parameters,
 
 def identify_trace(trace: Trace, inputs: Inputs, params: Parameters, settings: IdentifySettings,
                    numerics: Numerics = DEFAULT, show_progress: bool = True,
-                   recordings: list[ResidualRecording | str] = ()) -> Identification:
-    """Run the GA (and optional refinement) on one trace; nothing is written."""
+                   recordings: list[ResidualRecording | str] = (),
+                   commissioned: bool | None = None) -> Identification:
+    """Run the GA (and optional refinement) on one trace; nothing is written.
+
+    ``commissioned``: whether ``params`` was fitted to the unit that made the trace
+    (default: the set carries a ``commissioning`` section); it chooses the intervals'
+    model-error laws when the trace is not a twin experiment."""
     start = time.perf_counter()
     correction = choose_correction(trace, inputs, params, settings, numerics, recordings)
     objective = Objective(trace, inputs, params, settings, numerics, correction)
@@ -251,8 +256,11 @@ def identify_trace(trace: Trace, inputs: Inputs, params: Parameters, settings: I
         best, best_fitness, refined = polish(objective, result.best, result.fitness,
                                              settings.polish)
     estimate = objective.values(best)
+    if commissioned is None:
+        commissioned = params.spec.commissioning is not None
+    twin = is_twin(trace, params)
     confidence = assess(objective, trace, estimate, best_fitness, settings.estimate,
-                        params.spec.health, twin=is_twin(trace, params))
+                        params.spec.health, twin=twin, basis=basis_of(twin, commissioned))
     return Identification(
         estimate=estimate, ga_estimate=objective.values(result.best),
         fitness=best_fitness, ga_fitness=result.fitness, evaluations=objective.evaluations,
