@@ -55,9 +55,9 @@ from emaprog.identification.objective import NUISANCE_DEFAULTS
 from _output import finish, parser  # the sibling module benchmarks/_output.py
 
 TARGET = 0.90
-FACTORS = np.round(np.geomspace(0.2, 8.0, 81), 3)
+FACTORS = np.round(np.geomspace(1.0, 8.0, 61), 3)
 #: the nuisances' (their linearised error is an order of magnitude short on spread units)
-NUISANCE_FACTORS = np.round(np.geomspace(0.5, 50.0, 81), 3)
+NUISANCE_FACTORS = np.round(np.geomspace(1.0, 50.0, 71), 3)
 SHARES = np.round(np.arange(0.0, 0.1001, 0.0025), 4)
 #: load coefficients as a share of the quantity's SPEC 10 tolerance (the phase: of 0.1 rad)
 LOADS = np.concatenate([[0.0], np.geomspace(1e-3, 0.3, 31)])
@@ -82,7 +82,8 @@ class Cases:
     A nuisance (hinge moment, resistance factor) counts where it was estimated, its
     deviation from its default; its interval is plain ``estimate +- 1.645 se``."""
 
-    def __init__(self, frame: pd.DataFrame, name: str, incipient: dict[str, float], twin: bool):
+    def __init__(self, frame: pd.DataFrame, name: str, incipient: dict[str, float], twin: bool,
+                 ratio_ref: float = math.inf):
         q = QUANTITIES.get(name)
         healthy = NUISANCE_DEFAULTS[name] if q is None else q.healthy
         est = frame[f"est_{name}"].to_numpy(float)
@@ -106,6 +107,8 @@ class Cases:
         self.nuisance, self.circular = q is None, q is not None and q.circular
         one_group = self.nuisance or self.circular
         faulty = np.ones(len(frame), bool) if one_group else np.abs(true - healthy) > 0.0
+        ratio = frame["floor_ratio"].to_numpy(float) if "floor_ratio" in frame else np.ones(len(frame))
+        self.widening = np.maximum(1.0, np.sqrt(ratio / ratio_ref))[keep]
         self.error, self.sigma, self.deviation = error[keep], sigma[keep], deviation[keep]
         self.load = load[keep]
         self.name, self.estimate, self.true = name, est[keep], true[keep]
@@ -114,8 +117,8 @@ class Cases:
                       else PHASE_SCALE if q.tolerance is None else q.tolerance)
 
     def se(self, factor: float, share: float, load: float) -> np.ndarray:
-        return np.sqrt((factor * self.sigma) ** 2 + (share * self.deviation) ** 2
-                       + (load * self.load) ** 2)
+        return self.widening * np.sqrt((factor * self.sigma) ** 2 + (share * self.deviation) ** 2
+                                       + (load * self.load) ** 2)
 
     def covered(self, factor: float, share: float, load: float = 0.0) -> np.ndarray:
         """Whether each case's 90 % interval under the law holds its truth: the interval is
@@ -141,7 +144,7 @@ class Cases:
 
 def pooled(parts: list[Cases]) -> Cases:
     out = object.__new__(Cases)
-    for field in ("error", "sigma", "deviation", "faulty", "estimate", "true", "load"):
+    for field in ("error", "sigma", "deviation", "faulty", "estimate", "true", "load", "widening"):
         setattr(out, field, np.concatenate([getattr(p, field) for p in parts]))
     out.circular, out.nuisance = parts[0].circular, parts[0].nuisance
     out.name, out.scale = parts[0].name, parts[0].scale
@@ -185,15 +188,20 @@ def calibrate(directories: list[Path]) -> list[dict]:
         twin = basis == "twin"
         chosen = {d: f[_basis(f) == basis] for d, f in frames.items()}
         chosen = {d: f for d, f in chosen.items() if len(f)}
+        if not chosen:
+            continue
+        # the ratio the laws are calibrated under: the 95th percentile of the first results
+        # directory of this basis (the calibration campaign; the others are checked)
+        ratio_ref = float(np.quantile(next(iter(chosen.values()))["floor_ratio"], 0.95))
         estimated = [n for n in NUISANCE_DEFAULTS
                      if any(f"sigma_{n}" in f and f[f"sigma_{n}"].notna().any()
                             for f in chosen.values())]
         for name in [*QUANTITIES, *estimated] if chosen else ():
-            per = {d: Cases(f, name, incipient, twin) for d, f in chosen.items()}
+            per = {d: Cases(f, name, incipient, twin, ratio_ref) for d, f in chosen.items()}
             per = {d: c for d, c in per.items() if c.error.size}
             law = fit(pooled(list(per.values())),
                       NUISANCE_FACTORS if name in NUISANCE_DEFAULTS else FACTORS)
-            rows.append(_row(name, basis, law, per))
+            rows.append({**_row(name, basis, law, per), "ratio_ref": ratio_ref})
     return rows
 
 
