@@ -265,11 +265,12 @@ def _solve(recordings, params, free, x0):
         result = least_squares(problem, start, bounds=(lower, upper), method="trf",
                                diff_step=DIFF_STEP, x_scale=1.0, xtol=1e-8, ftol=1e-10,
                                max_nfev=200)
-    jac = result.jac
-    dof = max(result.fun.size - jac.shape[1], 1)
-    s2 = float(result.fun @ result.fun) / dof
-    information = jac.T @ jac
-    cov = s2 * correlation_length(result.fun, problem.blocks) * information_inverse(information)
+        # the covariance on one BLAS thread too: the same numbers whatever the thread count
+        jac = result.jac
+        dof = max(result.fun.size - jac.shape[1], 1)
+        s2 = float(result.fun @ result.fun) / dof
+        information = jac.T @ jac
+        cov = s2 * correlation_length(result.fun, problem.blocks) * information_inverse(information)
     return problem, result, cov, information
 
 
