@@ -96,3 +96,32 @@ def head_samples(time: np.ndarray, seconds: float = 1e-3) -> int:
     which a recording's starting state (at rest, loaded, at its command) is judged."""
     time = np.asarray(time, dtype=np.float64)
     return max(2, int(np.searchsorted(time, time[0] + seconds)))
+
+
+def correlation_length(residual: np.ndarray, blocks: list[int]) -> float:
+    """Samples per independent residual: the integrated autocorrelation time [samples].
+
+    The residual of a fit to real data is not white: the 1 ms mean correlates
+    neighbours, and what the Monitor does not model (the Reference's switching, a
+    real unit's unmodelled effects) runs over many milliseconds. Standard errors
+    from ``s^2 (J^T J)^-1`` count every sample as independent and would be
+    optimistic by the square root of this length. Per block (recording x signal):
+    ``1 + 2 sum rho_k`` up to the first non-positive autocorrelation; the
+    mean over the blocks, weighted by their length.
+    """
+    lengths, weights = [], []
+    for part in np.split(residual, np.cumsum(blocks)[:-1]):
+        x = part - part.mean()
+        n = x.size
+        if n < 2:
+            continue
+        spectrum = np.fft.rfft(x, 2 * n)
+        acf = np.fft.irfft(spectrum * np.conj(spectrum))[:n]
+        if acf[0] <= 0:
+            continue
+        rho = acf / acf[0]
+        stop = np.flatnonzero(rho <= 0)
+        k = int(stop[0]) if stop.size else n
+        lengths.append(1.0 + 2.0 * float(np.sum(rho[1:k])))
+        weights.append(n)
+    return float(np.average(lengths, weights=weights)) if lengths else 1.0

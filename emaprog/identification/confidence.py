@@ -60,7 +60,7 @@ from ..faults import (
     CATALOGUE, FAULTS, PHASE_FAULT, QUANTITIES, ModelError, fault_load, worst_phase,
 )
 from ..kernels.structs import Plant
-from ..signals import noise_sigma
+from ..signals import correlation_length, noise_sigma
 from .objective import NUISANCE_DEFAULTS, SIGNALS, Objective, fine_plant, low_pass
 
 Z90 = 1.6448536269514722  # two-sided 90 % quantile of the normal distribution
@@ -177,35 +177,6 @@ def uninformative(objective: Objective, trace, floor: NoiseFloor) -> str | None:
                 f"filtered signal's energy (at most {MAX_FLOOR_SHARE:g}), so no fit can be told "
                 "from another")
     return None
-
-
-def correlation_length(residual: np.ndarray, blocks: list[int]) -> float:
-    """Samples per independent residual: the integrated autocorrelation time [samples].
-
-    The residual of a fit to real data is not white: the 1 ms mean correlates
-    neighbours, and what the Monitor does not model (the Reference's switching, a
-    real unit's unmodelled effects) runs over many milliseconds. Standard errors
-    from ``s^2 (J^T J)^-1`` count every sample as independent and would be
-    optimistic by the square root of this length. Per block (recording x signal):
-    ``1 + 2 sum rho_k`` up to the first non-positive autocorrelation; the
-    mean over the blocks, weighted by their length.
-    """
-    lengths, weights = [], []
-    for part in np.split(residual, np.cumsum(blocks)[:-1]):
-        x = part - part.mean()
-        n = x.size
-        if n < 2:
-            continue
-        spectrum = np.fft.rfft(x, 2 * n)
-        acf = np.fft.irfft(spectrum * np.conj(spectrum))[:n]
-        if acf[0] <= 0:
-            continue
-        rho = acf / acf[0]
-        stop = np.flatnonzero(rho <= 0)
-        k = int(stop[0]) if stop.size else n
-        lengths.append(1.0 + 2.0 * float(np.sum(rho[1:k])))
-        weights.append(n)
-    return float(np.average(lengths, weights=weights)) if lengths else 1.0
 
 
 def information_inverse(information: np.ndarray) -> np.ndarray:

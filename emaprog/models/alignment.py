@@ -23,6 +23,7 @@ import numpy as np
 
 from ..config.parameters import Parameters
 from ..config.scenario import Scenario
+from .. import signals
 from ..faults import healthy_values, monitor_form
 from . import monitor
 from .common import inputs
@@ -49,7 +50,7 @@ def align_command(scenario: Scenario, params: Parameters, time: np.ndarray,
     response = np.interp(grid, inp.time, model["position"])
     n_model = int(min(t.size, math.floor(inp.time[-1] / period) + 1))
     measured = np.asarray(position, dtype=np.float64)
-    lag, _ = _best_lag(measured, response[:n_model])
+    lag = _best_lag(measured, response[:n_model])
     delay = lag * period
     shifted = np.interp(t - delay, inp.time, model["position"],
                         left=model["position"][0], right=model["position"][-1])
@@ -67,9 +68,7 @@ def align_command(scenario: Scenario, params: Parameters, time: np.ndarray,
         refine = 0.5 * (curvature[0] - curvature[1]) / (d2 * step ** 2) * step
         refine = float(np.clip(refine, -step, step))
     delay += refine
-    from ..identification.confidence import correlation_length
-
-    length = correlation_length(residual, [residual.size])
+    length = signals.correlation_length(residual, [residual.size])
     error = math.sqrt(2.0 * s2 * length / d2) if d2 > 0 else math.inf
     command = np.interp(t - delay, inp.time, inp.command, left=inp.command[0],
                         right=inp.command[-1])
@@ -80,7 +79,7 @@ def align_command(scenario: Scenario, params: Parameters, time: np.ndarray,
     return Alignment(command, float(delay), float(error), note)
 
 
-def _best_lag(measured: np.ndarray, response: np.ndarray) -> tuple[int, float]:
+def _best_lag(measured: np.ndarray, response: np.ndarray) -> int:
     """The integer lag ``k`` in ``[0, n/2]`` (the command starting ``k`` samples into the
     recording) of least squared error over the whole recording: before ``k`` the model
     stands at its first value, after its end at its last. O(n log n) by FFT."""
@@ -97,5 +96,4 @@ def _best_lag(measured: np.ndarray, response: np.ndarray) -> tuple[int, float]:
     before = x2[k] - 2.0 * r[0] * x1[k] + k * r[0] ** 2
     after = (x2[n] - x2[k]) - 2.0 * cross + r2[n - k]
     sse = (before + after)[: n // 2 + 1]
-    best = int(np.argmin(sse))
-    return best, float(sse[best])
+    return int(np.argmin(sse))
