@@ -125,7 +125,7 @@ def measure(repeat: int) -> dict[str, float]:
         path = Path(tmp) / "fig10.parquet"
         api.simulate(FIG10, output=path)
         figures["identify_s"] = median_time(
-            lambda: api.identify(path, output=Path(tmp) / "report"),
+            lambda: api.identify(path, output=Path(tmp) / "report", force=True),
             max(1, repeat // 2))
     figures["sweep_cases_per_min"] = SWEEP_CASES / (median_time(
         lambda: sweep_once(SWEEP_CASES), max(1, repeat // 2)) / 60.0)

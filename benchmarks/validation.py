@@ -23,7 +23,7 @@ def main(out: Path = ROOT / "docs") -> list[dict]:
     for name in CASES:
         trace = out / "validation" / f"{name}.parquet"
         api.simulate(ROOT / "configs" / f"{name}.yaml", output=trace)
-        report = api.identify(trace, output=out / "validation" / name)
+        report = api.identify(trace, output=out / "validation" / name, force=True)
         trace.unlink()
         results.append({"case": name, **report.data})
     lines = ["# Identification on the shipped configs (twin experiments)", "",
