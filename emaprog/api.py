@@ -26,9 +26,9 @@ from .config.scenario import (
     IdentifySettings, Scenario, load_any, load_scenario, parse_scenario,
 )
 from .errors import InputError
-from .faults import PHASE_FAULT, QUANTITIES, flatten, nested, worst_phase
+from .faults import PHASE_FAULT, QUANTITIES, flatten, nested
 from .identification import check_sampling, identify_trace
-from .identification.confidence import confidence_record
+from .identification.confidence import confidence_record, named_phase
 from .identification.defaults import resolve as resolve_settings
 from .identification.objective import low_pass
 from .identification import result as verdicts
@@ -366,6 +366,7 @@ def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = 
     confidence = confidence_record(result.confidence)
     if not flagged:  # a phase is named, with its confidence, only beside a flagged short
         confidence["isolation"] = None
+    phase = named_phase(result.estimate, flagged, result.confidence.isolation)
     data = {
         "estimate": nested(result.estimate),
         "truth": nested(truth) if truth is not None else None,
@@ -373,7 +374,7 @@ def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = 
         "health": health,
         "interval": nested({q: list(result.confidence.interval[q])
                             if q in result.confidence.interval else None for q in QUANTITIES}),
-        f"{PHASE_FAULT}_phase": worst_phase(result.estimate) if flagged else None,
+        f"{PHASE_FAULT}_phase": phase,
         "nuisance": {name: result.estimate[name] for name in settings.nuisances},
         "nuisance_interval": {name: [x if math.isfinite(x) else None
                                      for x in result.confidence.interval[name]]

@@ -11,6 +11,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from .faults import CATALOGUE, FAULTS, PHASE_FAULT, QUANTITIES, Quantity  # noqa: E402
+from .identification.confidence import MIN_PHASE_CONFIDENCE  # noqa: E402
 from .io.storage import Trace  # noqa: E402
 
 
@@ -127,6 +128,11 @@ def identification_summary(report: dict) -> str:
     health = ", ".join(f"{fault} {verdict}" for fault, verdict in report["health"].items())
     lines = [f"health: {health}"]
     phase = report.get(f"{PHASE_FAULT}_phase")
+    isolation = report["confidence"]["isolation"]
+    if report["health"].get(PHASE_FAULT) in ("incipient", "degraded") and not phase and isolation:
+        lines.append(f"{FAULTS[PHASE_FAULT].label}: phase not determined, "
+                     f"{isolation['phase'].upper()} or {isolation['runner_up'].upper()} "
+                     f"(confidence {isolation['confidence']:.0%})")
     if report["health"].get(PHASE_FAULT) in ("incipient", "degraded") and phase:
         isolation = report["confidence"]["isolation"]
         channel = (report.get("phase_channels") or {}).get(phase)
@@ -175,6 +181,11 @@ def _phase_sentence(report: dict) -> str:
         return "No short circuit flagged: no faulty phase named."
     phase = report.get(f"{PHASE_FAULT}_phase")
     isolation = report["confidence"]["isolation"]
+    if phase is None and isolation is not None:
+        return (f"Short circuit flagged, phase not determined: {isolation['phase'].upper()} or "
+                f"{isolation['runner_up'].upper()} (confidence {isolation['confidence']:.0%} "
+                f"for {isolation['phase'].upper()}, below the {MIN_PHASE_CONFIDENCE:.0%} a named "
+                "phase needs).")
     channel = (report.get("phase_channels") or {}).get(phase)
     named = f"{phase.upper()}" + (f" (logger channel `{channel}`)" if channel else "")
     sentence = f"Faulty phase (largest shorted fraction): {named}."

@@ -68,3 +68,20 @@ def test_a_fault_seen_at_one_inspection_gets_no_remaining_useful_life(tmp_path):
     assert friction["rul"] == {"median": None, "low": None, "high": None}
     assert "insufficient history" in (tmp_path / "trend" / "trend.md").read_text()
     assert json.loads((tmp_path / "trend" / "trend.json").read_text())["faults"]["friction"]["note"]
+
+
+def test_a_short_circuit_split_between_two_phases_names_neither():
+    """Flagged, but A and B told apart at 68 % (a 2 kHz recording's 0.064 / 0.063): no phase
+    named, the two candidates said; at 99 % the worst phase is named; unflagged, none."""
+    from emaprog.identification.confidence import MIN_PHASE_CONFIDENCE, named_phase
+    from emaprog.report import _phase_sentence
+
+    values = {"short_circuit_a": 0.064, "short_circuit_b": 0.063, "short_circuit_c": 0.014}
+    split = {"phase": "a", "runner_up": "b", "delta_chi2": 1.47, "confidence": 0.68}
+    clear = {**split, "confidence": 0.99}
+    assert MIN_PHASE_CONFIDENCE == 0.9
+    assert named_phase(values, True, split) is None
+    assert named_phase(values, True, clear) == "a" and named_phase(values, False, clear) is None
+    report = {"health": {"short_circuit": "incipient"}, "short_circuit_phase": None,
+              "confidence": {"isolation": split}}
+    assert "phase not determined: A or B" in _phase_sentence(report)

@@ -284,7 +284,8 @@ def run_case(spec: CaseSpec) -> dict:
         row[f"true_health_{fault}"] = true_health[fault]
     row.update({
         f"true_{PHASE_FAULT}_phase": worst_phase(truth) or "none",
-        f"est_{PHASE_FAULT}_phase": _detected_phase(result.estimate, health),
+        f"est_{PHASE_FAULT}_phase": _detected_phase(result.estimate, health,
+                                                    confidence.isolation),
         "fitness": float(result.fitness),
         "correction": result.objective.correction.applied,
         "floor_ratio": float(confidence.floor.ratio),
@@ -313,11 +314,13 @@ def run_case(spec: CaseSpec) -> dict:
     return row
 
 
-def _detected_phase(estimate: dict[str, float], health: dict[str, str]) -> str:
-    """The phase named faulty: the worst one, only when the short circuit is flagged."""
-    if health.get(PHASE_FAULT, "nominal") not in ("incipient", "degraded"):
-        return "none"
-    return worst_phase(estimate) or "none"
+def _detected_phase(estimate: dict[str, float], health: dict[str, str],
+                    isolation: dict | None = None) -> str:
+    """The phase named faulty (:func:`~emaprog.identification.confidence.named_phase`)."""
+    from ..identification.confidence import named_phase
+
+    flagged = health.get(PHASE_FAULT, "nominal") in ("incipient", "degraded")
+    return named_phase(estimate, flagged, isolation) or "none"
 
 
 class Failure(NamedTuple):
