@@ -71,7 +71,7 @@ def test_a_fault_seen_at_one_inspection_gets_no_remaining_useful_life(tmp_path):
 
 
 def test_a_short_circuit_split_between_two_phases_names_neither():
-    """Flagged, but A and B told apart at 68 % (a 2 kHz recording's 0.064 / 0.063): no phase
+    """Flagged, but A and B told apart at 68 % (like a 2 kHz recording's 0.064 / 0.060): no phase
     named, the two candidates said; at 99 % the worst phase is named; unflagged, none."""
     from emaprog.identification.confidence import MIN_PHASE_CONFIDENCE, named_phase
     from emaprog.report import _phase_sentence
