@@ -249,7 +249,7 @@ def _commissioning_residuals(params: Parameters) -> list:
         except InputError as exc:
             out.append(f"commissioning recording {entry.file} unreadable: {exc}")
             continue
-        rec_inputs = inputs_from_trace(recording, params.spec.controller.rate)
+        rec_inputs = inputs_from_trace(recording, params)
         out.append(recording_residual(recording, rec_inputs, params, entry.hinge_moment,
                                       str(path)))
     return out
@@ -352,7 +352,7 @@ def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = 
     check_plausible(measured, params, source)
     check_at_rest(measured, params, source)
     load, load_note = _load_of(embedded, chosen, settings)
-    inp = inputs_from_trace(measured, params.spec.controller.rate, load)
+    inp = inputs_from_trace(measured, params, load)
     recordings = (_commissioning_residuals(params) if settings.nominal_correction == "recording"
                   else [])
     result = identify_trace(measured, inp, params, settings, show_progress=show_progress,

@@ -158,7 +158,7 @@ def prepare(trace: Trace, source: str, params: Parameters) -> Recording:
                          "torque constant are not determined; record the standard test command "
                          "(e.g. a 0.05 rad chirp, 0.5-10 Hz)", "speed")
     rate = params.spec.controller.rate
-    inputs = inputs_from_trace(trace, rate)
+    inputs = inputs_from_trace(trace, params)
     width_model = max(1, round(FILTER_SECONDS * rate))
     recording_rate = trace.sample_rate
     width = max(1, round(FILTER_SECONDS * recording_rate))

@@ -346,51 +346,186 @@ def check_at_rest(trace: Trace, params: Parameters, path) -> None:
                          "fine) or cut the recording at a moment of rest", "speed")
 
 
-#: [-] share of the conducting samples on which a channel permutation must put the idle
-#: phase where the model's commutation puts it, and its lead over the runner-up, for the
-#: recording's channel naming to be trusted (:func:`phase_identity`; chance is 1/3).
-#: Measured on the example rig's recordings: 0.92-0.93 with a recorded speed (runner-up
-#: 0.36-0.37), 0.70 with the speed derived from the position (runner-up 0.36).
+#: [-] share of the conducting samples on which a channel permutation and rotor angle must
+#: put both the idle phase and the phase carrying the torque's current where the model's
+#: commutation puts them, and its lead over the best distinct hypothesis (another sequence,
+#: or a rotor angle 60 degrees electrical or more away), for the recording's channel naming
+#: to be trusted (:func:`phase_identity`; chance is 1/6). Measured on the example rig's
+#: recordings: 0.92-0.93 with a recorded speed (runner-up 0.33-0.35), 0.70-0.71 with the
+#: speed derived from the position (runner-up 0.27).
 PHASE_AGREEMENT = 0.6
 PHASE_MARGIN = 0.2
+#: [deg] resolution of the rotor's electrical angle at the first sample (720 steps a turn,
+#: so that the 120 degree shifts that relabel the windings cyclically fall on the grid).
+ANGLE_STEP_DEG = 0.5
+#: [deg] how far a hypothesis' rotor angle must be from the best one to count as distinct.
+DISTINCT_DEG = 60.0
+
+
+def _identity_scores(theta_rel: np.ndarray, currents: np.ndarray, sign: np.ndarray
+                     ) -> tuple[dict[tuple[int, ...], np.ndarray], int]:
+    """Agreement of every channel permutation at every rotor angle at the first sample:
+    ``{perm: (720,) share of the conducting samples}`` (perm[model winding] = channel)."""
+    from itertools import permutations
+
+    from ..kernels.bldc import IDLE_PHASE, POSITIVE_PHASE
+
+    magnitude = np.abs(currents).sum(axis=0) / 2.0
+    # samples carrying current and a sure torque sign: where the pair conducts, the idle
+    # phase is the smallest and the torque's phase the largest along the torque's sign
+    conducting = (magnitude > max(0.3 * float(np.median(magnitude)), 1e-9)) & (sign != 0.0)
+    count = int(conducting.sum())
+    bins = int(round(360.0 / ANGLE_STEP_DEG))
+    if count == 0:
+        return {perm: np.zeros(bins) for perm in permutations(range(3))}, 0
+    idle = np.argmin(np.abs(currents[:, conducting]), axis=0)
+    lead = np.argmax(currents[:, conducting] * sign[conducting], axis=0)
+    step = 2.0 * math.pi / bins
+    where = np.floor(np.mod(theta_rel[conducting], 2.0 * math.pi) / step).astype(np.int64) % bins
+    histogram = np.zeros((9, bins))
+    np.add.at(histogram, (3 * idle + lead, where), 1.0)
+    centre = (np.arange(bins) + 0.5) * step
+    sector = np.floor((centre + math.pi / 6.0) / (math.pi / 3.0)).astype(np.int64) % 6
+    shifted = sector[(np.arange(bins)[:, None] + np.arange(bins)[None, :]) % bins]  # [shift, bin]
+    scores = {}
+    for perm in permutations(range(3)):
+        p = np.asarray(perm)
+        code = 3 * p[IDLE_PHASE] + p[POSITIVE_PHASE]  # per model sector
+        scores[perm] = histogram[code[shifted], np.arange(bins)[None, :]].sum(axis=1) / count
+    return scores, count
+
+
+#: [-] the rotor angle is the centroid of the scores within this of their peak (the peak
+#: is flat over a few degrees: the idle phase's current decays after each commutation).
+#: Measured on seven Reference recordings at 0, 30, 69 and -150 degrees: within 0.7 degrees
+#: (the first maximum alone: within 1 degree).
+PEAK_DROP = 0.02
+
+
+def _peak_deg(score: np.ndarray) -> float:
+    """The rotor angle [deg] at a score curve's peak (:data:`PEAK_DROP`)."""
+    j = int(np.argmax(score))
+    near = np.arange(-int(DISTINCT_DEG / ANGLE_STEP_DEG), int(DISTINCT_DEG / ANGLE_STEP_DEG) + 1)
+    weight = np.clip(score[(j + near) % score.size] - (score[j] - PEAK_DROP), 0.0, None)
+    return float((j + np.sum(weight * near) / np.sum(weight)) * ANGLE_STEP_DEG) % 360.0
+
+
+def _parity(perm: tuple[int, ...]) -> int:
+    return sum(1 for i in range(3) for j in range(i + 1, 3) if perm[i] > perm[j]) % 2
+
+
+def _circular_deg(a: float, b: float) -> float:
+    return abs((a - b + 180.0) % 360.0 - 180.0)
 
 
 def phase_identity(trace_columns: dict[str, np.ndarray], params: Parameters,
-                   channels: dict[str, str]) -> dict:
-    """Which recorded channel carries which of the model's windings.
+                   channels: dict[str, str], torque_sign: np.ndarray,
+                   expected_deg: float | None = None, speed_source: str = "recorded") -> dict:
+    """Which recorded channel carries which of the model's windings, and the rotor's
+    electrical angle at the first sample.
 
-    The model (both models) commutes by the electrical angle ``P theta_m`` from a rotor at
-    electrical zero at the first sample; in each sector one winding is idle
-    (:data:`~emaprog.kernels.bldc.IDLE_PHASE`). The recorded motor angle (``motor_angle``,
-    else the integral of the speed) gives the model's sector at every sample, and the
-    smallest of the three recorded phase currents the idle channel; the permutation of the
-    channels that agrees on most of the samples with current is the identity. Returns
-    ``{"windings": {model phase: map key}, "channels": {model phase: logger column},
-    "agreement", "runner_up", "trusted"}``.
+    In each commutation sector of the model (:mod:`~emaprog.kernels.bldc`) one winding is
+    idle and one carries the pair current along the torque. The recorded motor angle
+    (``motor_angle``, else the integral of the speed) times the pole pairs gives the rotor's
+    electrical angle up to its value at the first sample; the smallest recorded phase
+    current gives the idle channel and the largest along ``torque_sign`` the torque's. Every
+    permutation of the channels is scored at every angle at the first sample
+    (:data:`ANGLE_STEP_DEG`): the share of the conducting samples on which both agree.
+
+    A cyclic relabelling of the windings is the same as a rotor 120 degrees electrical on,
+    so the scores fix the phase sequence, not which of three cyclic labellings is meant.
+    The choice: the labelling whose angle is nearest ``expected_deg`` (the unit's position
+    sensor offset found at commissioning, :func:`sensor_offset_deg`); without one, the
+    channels as the map names them when their sequence is the model's (the map is taken at
+    its word), else - two channels swapped - the swap that puts the rotor nearest electrical
+    zero. Returns ``{"windings": {model phase: map key}, "channels": {model phase: logger
+    column}, "agreement", "runner_up", "trusted", "electrical_angle_deg", "angle"}``; an
+    angle from the position (``speed_source`` ``position``: the speed was derived from it)
+    within :func:`twist_tolerance_deg` of 0 is taken as 0.
     """
-    from itertools import permutations
+    pp = params.spec.electrical.pole_pairs
+    theta_rel = pp * _angle(trace_columns)
+    currents = np.vstack([trace_columns[k] for k in PHASE_COLUMNS])
+    scores, _ = _identity_scores(theta_rel, currents, np.sign(torque_sign))
+    bins = next(iter(scores.values())).size
+    best = max(scores, key=lambda q: (float(scores[q].max()), q == (0, 1, 2)))
+    top = float(scores[best].max())
+    j_best = int(np.argmax(scores[best]))
+    angle_of = np.arange(bins) * ANGLE_STEP_DEG
+    distance = np.array([_circular_deg(a, angle_of[j_best]) for a in angle_of])
+    same = scores[best][distance >= DISTINCT_DEG]
+    other = [float(scores[q].max()) for q in scores if _parity(q) != _parity(best)]
+    runner = max([float(same.max()) if same.size else 0.0] + other)
+    group = [q for q in scores if _parity(q) == _parity(best)]
+    candidates = {q: _peak_deg(scores[q]) for q in group}
+    if expected_deg is not None:
+        chosen = min(group, key=lambda q: _circular_deg(candidates[q], expected_deg))
+    elif (0, 1, 2) in group:
+        chosen = (0, 1, 2)
+    else:
+        chosen = min(group, key=lambda q: _circular_deg(candidates[q], 0.0))
+    trusted = top >= PHASE_AGREEMENT and top - runner >= PHASE_MARGIN
+    keys = {winding: PHASE_COLUMNS[chosen[j]] for j, winding in enumerate("abc")}
+    found = (candidates[chosen] + 180.0) % 360.0 - 180.0
+    source = ("motor_angle" if "motor_angle" in trace_columns else
+              "integrated speed" if speed_source == "recorded" else "position")
+    tolerance = twist_tolerance_deg(params) if source == "position" else 0.0
+    angle = 0.0 if abs(found) <= tolerance else found
+    identity = {"windings": keys, "channels": {w: channels[k] for w, k in keys.items()},
+                "agreement": top, "runner_up": runner, "trusted": bool(trusted),
+                "electrical_angle_deg": round(float(angle), 2), "angle": source}
+    if angle != found:
+        identity["note"] = (f"rotor angle {found:.1f} deg electrical from the position, within "
+                            f"the {tolerance:.1f} deg the transmission's twist leaves it: taken as 0")
+    return identity
 
-    from ..kernels.bldc import IDLE_PHASE
 
-    theta_e = params.spec.electrical.pole_pairs * _angle(trace_columns)
-    sector = np.floor((theta_e + math.pi / 6.0) / (math.pi / 3.0)).astype(np.int64) % 6
-    model_idle = IDLE_PHASE[sector]
-    currents = np.abs(np.vstack([trace_columns[k] for k in PHASE_COLUMNS]))
-    magnitude = currents.sum(axis=0) / 2.0
-    # samples carrying current: the idle phase is the smallest only where the pair conducts
-    conducting = magnitude > max(0.3 * float(np.median(magnitude)), 1e-9)
-    observed = np.argmin(currents, axis=0)
-    scores = {}
-    for perm in permutations(range(3)):  # perm[model winding] = recorded channel index
-        scores[perm] = float(np.mean(np.asarray(perm)[model_idle[conducting]] == observed[conducting])) \
-            if conducting.any() else 0.0
-    ranked = sorted(scores, key=scores.get, reverse=True)
-    best, runner = ranked[0], ranked[1]
-    trusted = scores[best] >= PHASE_AGREEMENT and scores[best] - scores[runner] >= PHASE_MARGIN
-    keys = {winding: PHASE_COLUMNS[best[j]] for j, winding in enumerate("abc")}
-    return {"windings": keys, "channels": {w: channels[k] for w, k in keys.items()},
-            "agreement": scores[best], "runner_up": scores[runner], "trusted": bool(trusted),
-            "angle": "motor_angle" if "motor_angle" in trace_columns else "integrated speed"}
+#: [N m] hinge moments a unit meets on the rig (the robustness campaigns span -50 to 70).
+RIG_HINGE_MOMENT = 70.0
+
+
+def twist_tolerance_deg(params: Parameters) -> float:
+    """[deg] how far the rotor's electrical angle may be from the surface position times the
+    gear ratio: the transmission's twist under :data:`RIG_HINGE_MOMENT`, ``P N H / k``
+    (9.6 deg on the shipped set). A recording whose speed is derived from the position
+    locates the rotor only to within it (measured on the example unit: 4-8 deg at 20-40 N m)."""
+    m = params.spec.mechanical
+    return math.degrees(params.spec.electrical.pole_pairs * m.gear_ratio * RIG_HINGE_MOMENT
+                        / m.transmission_stiffness)
+
+
+def sensor_offset_deg(identity: dict, trace_columns: dict[str, np.ndarray],
+                      params: Parameters) -> tuple[float, str]:
+    """The rotor's electrical angle where the angle sensor reads 0 [deg], from a recording's
+    identity, and which sensor that is (``motor_angle``, else ``position`` times the gear
+    ratio): a property of the unit, stored at commissioning."""
+    pp = params.spec.electrical.pole_pairs
+    if "motor_angle" in trace_columns:
+        source, reading = "motor_angle", float(trace_columns["motor_angle"][0])
+    else:
+        source = "position"
+        reading = params.spec.mechanical.gear_ratio * float(trace_columns["position"][0])
+    offset = identity["electrical_angle_deg"] - math.degrees(pp * reading)
+    return round((offset + 180.0) % 360.0 - 180.0, 3), source
+
+
+def expected_angle_deg(trace_columns: dict[str, np.ndarray], params: Parameters) -> float | None:
+    """The rotor's electrical angle at a recording's first sample that the unit's
+    commissioning predicts (its stored sensor offset, :func:`sensor_offset_deg`), or None."""
+    record = params.spec.commissioning
+    if record is None:
+        return None
+    for r in record.recordings:
+        known = r.phase_identity or {}
+        if known.get("trusted") and "sensor_offset_deg" in known:
+            source = known.get("offset_from")
+            if source == "motor_angle" and "motor_angle" not in trace_columns:
+                continue
+            pp = params.spec.electrical.pole_pairs
+            reading = (float(trace_columns["motor_angle"][0]) if source == "motor_angle" else
+                       params.spec.mechanical.gear_ratio * float(trace_columns["position"][0]))
+            return float(known["sensor_offset_deg"]) + math.degrees(pp * reading)
+    return None
 
 
 #: Ratios of a recorded channel to what the other channels say it should be, and the
@@ -510,24 +645,29 @@ def read_recording(path: str | Path, columns: ColumnMap, params: Parameters,
                            f"derived from position x gear ratio {gear:g}")
                           + f" (Savitzky-Golay derivative, order {SPEED_ORDER}, "
                           f"{SPEED_WINDOW_SECONDS[source] * 1e3:g} ms window)")}
-    identity = (phase_identity(out, params, {k: mapped[k].column for k in PHASE_COLUMNS})
-                if all(k in out for k in PHASE_COLUMNS) else None)
+    phases = all(k in out for k in PHASE_COLUMNS)
     if "current" in out:
-        how = "recorded"
+        how, sign = "recorded", np.sign(out["current"])
+    elif "torque" in out:
+        how, sign = "phase currents, signed like the recorded torque", np.sign(out["torque"])
     else:
-        magnitude = 0.5 * (np.abs(out["current_a"]) + np.abs(out["current_b"]) + np.abs(out["current_c"]))
-        if "torque" in out:
-            sign, how = np.sign(out["torque"]), "phase currents, signed like the recorded torque"
-        else:
-            # the replayed controller's demand (module docstring). Signing by the commutation
-            # sector instead was measured: fewer wrong signs against the true torque (0.18 %
-            # of the samples against 0.42 %), but the healthy Monitor, whose own current
-            # follows the same demand, then fitted the example unit's pre-roll recordings
-            # worse (k_e x0.939 against x0.980, true 0.98)
-            sign = np.sign(current_demand(out["time"], out["command"], out["position"],
-                                          out["speed"], params))
-            how = "phase currents, signed like the replayed controller's current demand"
-        out["current"] = magnitude * sign
+        # the replayed controller's demand (module docstring). Signing by the commutation
+        # sector instead was measured: fewer wrong signs against the true torque (0.18 %
+        # of the samples against 0.42 %), but the healthy Monitor, whose own current
+        # follows the same demand, then fitted the example unit's pre-roll recordings
+        # worse (k_e x0.939 against x0.980, true 0.98)
+        how = "phase currents, signed like the replayed controller's current demand"
+        sign = np.sign(current_demand(out["time"], out["command"], out["position"], out["speed"],
+                                      params))
+    identity = None
+    if phases:
+        identity = phase_identity(out, params, {k: mapped[k].column for k in PHASE_COLUMNS},
+                                  sign, expected_angle_deg(out, params), speed["source"])
+        identity["sensor_offset_deg"], identity["offset_from"] = sensor_offset_deg(identity, out,
+                                                                                   params)
+    if "current" not in out:
+        out["current"] = 0.5 * (np.abs(out["current_a"]) + np.abs(out["current_b"])
+                                + np.abs(out["current_c"])) * sign
     checked = check_columns({k: out[k] for k in COLUMNS if k in out}, path)
     meta = {
         "emaprog_version": __version__,

@@ -264,7 +264,8 @@ def simulate_monitor(drive, plant, faults, options, out):
     unit_k = gain_scale * elec.back_emf_constant
     k_phase = unit_k * phase_working
     outgoing = 0.0  # [A] freewheeling current of the phase that last left the pair
-    last_sector = sector(0.0)
+    theta_e0 = drive.electrical_angle
+    last_sector = sector(theta_e0)
     theta_m = 0.0
     omega_m = 0.0
     theta_s = 0.0
@@ -283,7 +284,7 @@ def simulate_monitor(drive, plant, faults, options, out):
         load = drive.load_torque[k] + drive.load_offset
         mean_current = 0.0
         for _ in range(substeps):
-            theta_e = pp * theta_m
+            theta_e = pp * theta_m + theta_e0
             s6 = sector(theta_e)
             gain = sector_gain[s6]
             if eccentric and paper_shape:
@@ -402,7 +403,8 @@ def _simulate_candidate(row, unit, drive, plant, options):
     """The Monitor outputs of one candidate row under its unit row."""
     n = drive.command.size
     candidate = MonitorFaults(row[0], row[1], row[2], row[3], row[4], row[5], row[6])
-    own_drive = Drive(drive.command, drive.load_torque, drive.load_stiffness, unit[U_HINGE_MOMENT])
+    own_drive = Drive(drive.command, drive.load_torque, drive.load_stiffness, unit[U_HINGE_MOMENT],
+                      drive.electrical_angle)
     out = MonitorOutputs(np.empty(n), np.empty(n), np.empty(n), np.empty(n))
     simulate_monitor(own_drive, unit_plant(plant, unit), candidate, options, out)
     return out

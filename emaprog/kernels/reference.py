@@ -63,7 +63,9 @@ def simulate_reference(drive, noise, plant, faults, substeps, out, energy, state
     Parameters
     ----------
     drive : Drive
-        Command [rad], hinge moment [N m] per period, aerodynamic spring [N m/rad].
+        Command [rad], hinge moment [N m] per period, aerodynamic spring [N m/rad], the
+        rotor's electrical angle at the first sample [rad] (the motor angle output starts
+        at 0 there: a position sensor whose zero is not the rotor's electrical zero).
     noise : SensorNoise
         Electrical noise on the feedback and current lines (drawn outside).
     plant : Plant
@@ -127,7 +129,7 @@ def simulate_reference(drive, noise, plant, faults, substeps, out, energy, state
         acc_c = 0.0
         acc_t = 0.0
         for _ in range(substeps):
-            theta_e = pp * theta_m
+            theta_e = pp * theta_m + drive.electrical_angle
             s6 = sector(theta_e)
             p = POSITIVE_PHASE[s6]
             q = NEGATIVE_PHASE[s6]

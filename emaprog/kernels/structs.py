@@ -92,6 +92,7 @@ class Drive(NamedTuple):
     load_torque: np.ndarray  # (n,) [N m] hinge moment opposing +deflection
     load_stiffness: float  # [N m/rad] aerodynamic spring
     load_offset: float  # [N m] constant hinge moment added to load_torque (a nuisance)
+    electrical_angle: float  # [rad] rotor electrical angle at the first sample (0: at electrical zero)
 
 
 class SensorNoise(NamedTuple):

@@ -21,10 +21,12 @@ class Inputs(NamedTuple):
     load_torque: np.ndarray  # [N m]
     load_stiffness: float  # [N m/rad]
     lead: int = 0  # samples before the recording's first one (time < 0): the models settle
+    electrical_angle: float = 0.0  # [rad] the rotor's electrical angle at the grid's first sample
 
     def drive(self, hinge_moment: float = 0.0) -> Drive:
         """The kernels' :class:`~emaprog.kernels.structs.Drive`, plus a constant hinge moment [N m]."""
-        return Drive(self.command, self.load_torque, float(self.load_stiffness), float(hinge_moment))
+        return Drive(self.command, self.load_torque, float(self.load_stiffness), float(hinge_moment),
+                     float(self.electrical_angle))
 
 
 def inputs(scenario: Scenario, params: Parameters) -> Inputs:
@@ -79,15 +81,19 @@ def settle_lead(trace, rate: float) -> int:
     return int(round(SETTLE_SECONDS * rate))
 
 
-def inputs_from_trace(trace, rate: float, load_spec=None) -> Inputs:
-    """Inputs on the controller grid (``rate`` [Hz]) for a measured trace at any rate.
+def inputs_from_trace(trace, params: Parameters, load_spec=None) -> Inputs:
+    """Inputs on the controller grid of ``params`` for a measured trace at any rate.
 
     The trace's first sample is time 0; the models start at rest there, or
     :func:`settle_lead` periods before it at the first command. When the trace is already
     on the controller grid its command is used as it is; otherwise the command is
     interpolated linearly onto the grid, which covers the last recorded instant. The load
-    is the scenario's where known, else none.
+    is the scenario's where known, else none. The rotor starts at the electrical angle the
+    recording's phase currents show (a trusted ``phase_identity``, docs/reference.md "Phase
+    identity"), else at electrical zero; with a lead, the models' travel to the first
+    command (``P N`` times its position) is taken off.
     """
+    rate = params.spec.controller.rate
     t_rec = np.asarray(trace.time, dtype=np.float64) - float(trace.time[0])
     n = int(math.ceil(t_rec[-1] * rate - 1e-9)) + 1
     grid = np.arange(n, dtype=np.float64) / rate
@@ -97,13 +103,18 @@ def inputs_from_trace(trace, rate: float, load_spec=None) -> Inputs:
     else:
         command = np.interp(grid, t_rec, command)
     lead = settle_lead(trace, rate)
+    identity = (getattr(trace, "metadata", None) or {}).get("phase_identity") or {}
+    angle = math.radians(identity["electrical_angle_deg"]) if identity.get("trusted") else 0.0
     if lead:
         grid = np.concatenate([(np.arange(lead, dtype=np.float64) - lead) / rate, grid])
         command = np.concatenate([np.full(lead, command[0]), command])
+        if angle:
+            turns = params.spec.electrical.pole_pairs * params.spec.mechanical.gear_ratio
+            angle -= turns * float(np.asarray(trace["position"], dtype=np.float64)[0])
     if load_spec is None:
-        return Inputs(grid, command, np.zeros(grid.size), 0.0, lead)
+        return Inputs(grid, command, np.zeros(grid.size), 0.0, lead, angle)
     torque, stiffness = signals.load(load_spec, grid)
-    return Inputs(grid, command, torque, stiffness, lead)
+    return Inputs(grid, command, torque, stiffness, lead, angle)
 
 
 class Instants(NamedTuple):

@@ -59,10 +59,11 @@ def unit_parameters():
 
 
 def simulate_recording(hinge: float, faults: dict, seed: int, preroll: float = 0.0,
-                       unit=None) -> dict[str, np.ndarray]:
+                       unit=None, electrical_angle: float = 0.0) -> dict[str, np.ndarray]:
     """The unit's noisy Reference trace of the standard test command under ``hinge`` [N m];
     with ``preroll`` [s] the logger starts that long before the command (the actuator at rest
-    under its load from the first sample, as on a rig)."""
+    under its load from the first sample, as on a rig); ``electrical_angle`` [rad] is the
+    rotor's electrical angle where the position and motor-angle sensors read 0."""
     base = load_scenario(HERE / "test-command.yaml")
     unit = unit_parameters() if unit is None else unit
     scenario = base.model_validate({**base.model_dump(mode="json"), "seed": seed,
@@ -76,6 +77,7 @@ def simulate_recording(hinge: float, faults: dict, seed: int, preroll: float = 0
         inp = Inputs(np.arange(n) / rate, np.concatenate([np.full(k, inp.command[0]), inp.command]),
                      np.concatenate([np.full(k, inp.load_torque[0]), inp.load_torque]),
                      inp.load_stiffness)
+    inp = inp._replace(electrical_angle=electrical_angle)
     columns, _ = reference.run(unit, inp, reference_form(flatten(scenario.faults)), seed)
     return columns
 
