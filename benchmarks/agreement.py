@@ -18,14 +18,18 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from emaprog.config import parameters  # noqa: E402
+from emaprog.config.scenario import load_scenario  # noqa: E402
 from emaprog.faults import (  # noqa: E402
-    HEALTHY, flatten, monitor_form, reference_form, values_of,
+    HEALTHY,
+    flatten,
+    monitor_form,
+    reference_form,
+    values_of,
 )
 from emaprog.identification.objective import low_pass  # noqa: E402
 from emaprog.kernels.monitor import SHORT_CIRCUIT_AVERAGED  # noqa: E402
 from emaprog.models import monitor, reference  # noqa: E402
 from emaprog.models.common import inputs  # noqa: E402
-from emaprog.config.scenario import load_scenario  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 

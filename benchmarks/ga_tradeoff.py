@@ -2,7 +2,7 @@
 
 For each (population, generations) the 10 cases of ``campaigns/regression.yaml``
 (random combinations of the four faults on noisy Reference traces) are
-identified; the table gives the share of cases within SPEC 10's tolerance per
+identified; the table gives the share of cases within tolerance per
 fault, the worst-phase short-circuit and zeta p95 errors, and the median
 identification time per case (2 workers on 2 cores).
 Run: ``python benchmarks/ga_tradeoff.py [--json]``; the last line with ``--json``
@@ -16,10 +16,9 @@ import tempfile
 from pathlib import Path
 
 import yaml
+from _output import finish, parser  # the sibling module benchmarks/_output.py
 
 from emaprog import api
-
-from _output import finish, parser  # the sibling module benchmarks/_output.py
 
 ROOT = Path(__file__).resolve().parent.parent
 CAMPAIGN = ROOT / "campaigns" / "regression.yaml"

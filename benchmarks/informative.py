@@ -6,7 +6,7 @@ chirp cut to 0.05-0.5 s, with its amplitude shrunk to 0.005 and 0.0005 rad and t
 (0), and with the sensor noise times 1, 5 and 20. Per recording: the gate's verdict
 (``emaprog.identification.confidence.uninformative``: too short, not excited, mostly
 noise), the fit ratio, and for the recordings the gate lets through whether every
-quantity is within SPEC 10's tolerance or its 90 % interval (an earned verdict) and
+quantity is within tolerance or its 90 % interval (an earned verdict) and
 whether a fault is flagged that is absent (a false alarm).
 
 Run: ``python benchmarks/informative.py [--json]`` (about 2 minutes on 2 cores).
@@ -73,7 +73,7 @@ def one(faulty: bool, duration: float, amplitude: float, noise: float) -> dict:
 
 
 def table(result: list[dict]) -> str:
-    lines = ["| unit | duration [s] | amplitude [rad] | noise | gate | ratio | floor | within SPEC 10 | false alarm |",
+    lines = ["| unit | duration [s] | amplitude [rad] | noise | gate | ratio | floor | within tolerance | false alarm |",
              "|---|---|---|---|---|---|---|---|---|"]
     for r in result:
         lines.append(f"| {'Fig. 10' if r['faulty'] else 'healthy'} | {r['duration']:g} | "

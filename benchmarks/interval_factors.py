@@ -46,20 +46,19 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from _output import finish, parser  # the sibling module benchmarks/_output.py
 
 from emaprog.config import parameters
 from emaprog.faults import CATALOGUE, QUANTITIES, fault_load
 from emaprog.identification.confidence import BASES, Z90, quantity_error, quantity_interval
 from emaprog.identification.objective import NUISANCE_DEFAULTS
 
-from _output import finish, parser  # the sibling module benchmarks/_output.py
-
 TARGET = 0.90
 FACTORS = np.round(np.geomspace(1.0, 8.0, 61), 3)
 #: the nuisances' (their linearised error is an order of magnitude short on spread units)
 NUISANCE_FACTORS = np.round(np.geomspace(1.0, 50.0, 71), 3)
 SHARES = np.round(np.arange(0.0, 0.1001, 0.0025), 4)
-#: load coefficients as a share of the quantity's SPEC 10 tolerance (the phase: of 0.1 rad)
+#: load coefficients as a share of the quantity's tolerance (the phase: of 0.1 rad)
 LOADS = np.concatenate([[0.0], np.geomspace(1e-3, 0.3, 31)])
 LOAD_WEIGHT = 0.5  # of each fault-load quarter in the loss, beside the two truth groups
 PHASE_SCALE = 0.1  # [rad] the eccentricity phase's load scale (it has no tolerance)

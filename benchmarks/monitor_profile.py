@@ -15,6 +15,8 @@ import sys
 
 import numba
 import numpy as np
+from _output import finish, parser  # the sibling module benchmarks/_output.py
+from run import FIG10, median_time, plain_loop  # the sibling speed benchmark
 
 from emaprog.config import parameters
 from emaprog.config.scenario import load_scenario
@@ -22,9 +24,6 @@ from emaprog.faults import flatten, healthy_values, monitor_form
 from emaprog.models import monitor
 from emaprog.models.common import inputs
 from emaprog.numerics import DEFAULT
-
-from _output import finish, parser  # the sibling module benchmarks/_output.py
-from run import FIG10, median_time, plain_loop  # the sibling speed benchmark
 
 
 def measure(repeat: int) -> list[dict]:
@@ -52,7 +51,7 @@ def measure(repeat: int) -> list[dict]:
     rows = [{"case": "plain single-phase loop (yardstick)", "ms": 1e3 * plain}]
     for name, (values, opts) in cases.items():
         faults = monitor_form(values, gain)
-        seconds = median_time(lambda: monitor.run(params, inp, faults, opts=opts), repeat)
+        seconds = median_time(lambda f=faults, o=opts: monitor.run(params, inp, f, opts=o), repeat)
         rows.append({"case": name, "ms": 1e3 * seconds})
     for row in rows:
         row["ns_per_step"] = 1e6 * row["ms"] / steps

@@ -20,7 +20,7 @@ and hands its best to the same local polish
   evaluated clipped with a quadratic penalty;
 * ``multistart`` -- bounded Powell from 6 Latin-hypercube starts sharing the budget.
 
-Table: share of cases within SPEC 10 per fault (short circuit: worst phase), p95
+Table: share of cases within tolerance per fault (short circuit: worst phase), p95
 errors, median Monitor runs and wall time per case (2 cores: the evaluator's
 parallel loop). Run: ``python benchmarks/optimizers.py [--json] [--cases N]``; the
 last line with ``--json`` is one JSON list.
@@ -34,20 +34,21 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _output import finish, parser  # the sibling module benchmarks/_output.py
 from deap import cma, creator
-from scipy.optimize import differential_evolution, minimize as local_minimize
+from scipy.optimize import differential_evolution
+from scipy.optimize import minimize as local_minimize
 
 from emaprog.campaign.cases import case_specs, load_parameters, with_hinge
 from emaprog.config.scenario import load_campaign
 from emaprog.faults import FAULTS, QUANTITIES, flatten
 from emaprog.identification import result as verdicts
-from emaprog.identification.ga import GAOptions, minimize as ga_minimize
+from emaprog.identification.ga import GAOptions
+from emaprog.identification.ga import minimize as ga_minimize
 from emaprog.identification.objective import Objective, reference_correction
 from emaprog.identification.run import DEFAULT_GA, ga_budget, polish
 from emaprog.models import reference
 from emaprog.models.common import inputs
-
-from _output import finish, parser  # the sibling module benchmarks/_output.py
 
 ROOT = Path(__file__).resolve().parent.parent
 CAMPAIGN = ROOT / "campaigns" / "regression.yaml"

@@ -7,7 +7,7 @@ recording logged at 10, 5, 2 and 1 kHz (every 1st, 2nd, 5th, 10th row), at 20 kH
 rate, so this row checks the faster-than-controller path, not extra information),
 and at 5 kHz with the equivalent current rebuilt from the phase currents (what a
 logger without an equivalent-current channel gives). Table: share of cases within
-SPEC 10's tolerance per quantity, p95 errors, median time per identification.
+the tolerance per quantity, p95 errors, median time per identification.
 Run: ``python benchmarks/rates.py [--json]`` (2 processes, about 5 minutes on 2 cores).
 """
 
@@ -18,7 +18,6 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
-
 from _output import finish, parser  # the sibling module benchmarks/_output.py
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -18,8 +18,19 @@ except PackageNotFoundError:  # running from a source tree that was never instal
     __version__ = "0+unknown"
 
 from .api import (  # noqa: E402 - __version__ first: the API stamps it on every result
-    Calibration, Commissioned, Report, SweepOutcome, Trend, calibrate, check, commission, convert,
-    identify, simulate, sweep, trend,
+    Calibration,
+    Commissioned,
+    Report,
+    SweepOutcome,
+    Trend,
+    calibrate,
+    check,
+    commission,
+    convert,
+    identify,
+    simulate,
+    sweep,
+    trend,
 )
 from .config.parameters import load as load_parameters  # noqa: E402
 from .config.scenario import load_scenario  # noqa: E402

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal, NamedTuple
@@ -23,18 +24,28 @@ from . import __version__
 from .config import parameters as parameter_sets
 from .config.parameters import Parameters
 from .config.scenario import (
-    IdentifySettings, Scenario, load_any, load_scenario, parse_scenario,
+    IdentifySettings,
+    Scenario,
+    load_any,
+    load_scenario,
+    parse_scenario,
 )
 from .errors import InputError
 from .faults import PHASE_FAULT, QUANTITIES, flatten, nested
 from .identification import check_sampling, identify_trace
+from .identification import result as verdicts
 from .identification.confidence import confidence_record, named_phase
 from .identification.defaults import resolve as resolve_settings
 from .identification.objective import low_pass
-from .identification import result as verdicts
 from .io.recordings import check_at_rest, check_plausible
 from .io.storage import (
-    Trace, frame_of, read_trace, trace_of, writable_output, write_json, write_trace,
+    Trace,
+    frame_of,
+    read_trace,
+    trace_of,
+    writable_output,
+    write_json,
+    write_trace,
 )
 from .models import monitor, reference
 from .models.common import inputs_from_trace
@@ -100,7 +111,7 @@ def simulate(scenario: str | Path | Scenario | dict, *, model: Model = "referenc
              show_progress: bool = False) -> pd.DataFrame:
     """Simulate a scenario on the Reference (default) or Monitor Model.
 
-    Returns the trace as a DataFrame (SPEC 4 columns; ``attrs["units"]`` per
+    Returns the trace as a DataFrame (trace columns (docs/reference.md, Traces); ``attrs["units"]`` per
     column, ``attrs["emaprog"]`` the provenance). With ``output`` the trace is
     also written there as Parquet (and with ``plot`` a PNG beside it).
     ``parameters`` overrides the set the scenario names.
@@ -126,9 +137,9 @@ def simulate(scenario: str | Path | Scenario | dict, *, model: Model = "referenc
 
 @dataclass(frozen=True)
 class Report:
-    """An identification's result: the SPEC 5 keys, typed, and the whole ``report.json``."""
+    """An identification's result: the the keys of docs/reference.md, Identification report, typed, and the whole ``report.json``."""
 
-    estimate: dict[str, Any]  # SPEC 5 shape: {"friction": x, "short_circuit": {"a": x, ..}, ..}
+    estimate: dict[str, Any]  # report shape: {"friction": x, "short_circuit": {"a": x, ..}, ..}
     truth: dict[str, Any] | None  # same shape, for a simulated trace
     error: dict[str, Any] | None
     health: dict[str, str]  # fault -> nominal | incipient | degraded | inconclusive
@@ -143,7 +154,7 @@ class Report:
     folder: Path | None  # where report.json, report.md and the figures are, if written
 
     @classmethod
-    def from_data(cls, data: dict[str, Any], folder: Path | None = None) -> "Report":
+    def from_data(cls, data: dict[str, Any], folder: Path | None = None) -> Report:
         keys = ("estimate", "truth", "error", "health", "interval", "fitness", "evaluations",
                 "elapsed_s", "seed", "settings", "emaprog_version")
         return cls(**{k: data[k] for k in keys}, data=data, folder=folder)
@@ -214,6 +225,9 @@ def _measured(path: Path, columns: str | Path | None, params: Parameters | None,
 
     if columns is None:
         return read_trace(path)
+    if params is None:
+        raise InputError(path, "a recording read through a column map needs a parameter set",
+                         "--parameters")
     command_of = None
     if test is not None:
         from .models.alignment import align_command
@@ -255,10 +269,10 @@ def _commissioning_residuals(params: Parameters) -> list:
     return out
 
 
-def commission(recordings: list[str | Path], output: str | Path, *,
+def commission(recordings: Sequence[str | Path], output: str | Path, *,
                parameters: str | Path | None = None, columns: str | Path | None = None,
                scenario: str | Path | None = None, force: bool = False) -> Commissioned:
-    """Fit a unit's own parameter set from recordings of it while healthy (SPEC 11).
+    """Fit a unit's own parameter set from recordings of it while healthy (docs/reference.md, Commissioning).
 
     ``recordings``: contract traces (Parquet) or, with ``columns``, rig recordings;
     ``scenario``: the test command of recordings without a command channel.
@@ -334,13 +348,13 @@ def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = 
         source = Path(trace)
         replayed = None  # the set whose controller signs a current built from phase currents
         if columns is not None:
-            replayed = (_parameters(parameters, chosen.parameters, Path(scenario).parent, scenario)
+            replayed = (_parameters(parameters, chosen.parameters, Path(str(scenario)).parent, str(scenario))
                         if chosen is not None else _parameters(parameters, None, None, "--parameters"))
         measured = _measured(source, columns, replayed, chosen)
     embedded = _trace_scenario(measured, source)
     basis = chosen or embedded
     if chosen is not None:
-        params = _parameters(parameters, chosen.parameters, Path(scenario).parent, scenario)
+        params = _parameters(parameters, chosen.parameters, Path(str(scenario)).parent, str(scenario))
     else:
         relative = source.parent if isinstance(source, Path) else None
         params = _parameters(parameters, _trace_set(measured, embedded, relative), relative,
@@ -375,10 +389,10 @@ def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = 
         "interval": nested({q: list(result.confidence.interval[q])
                             if q in result.confidence.interval else None for q in QUANTITIES}),
         f"{PHASE_FAULT}_phase": phase,
-        "nuisance": {name: result.estimate[name] for name in settings.nuisances},
+        "nuisance": {name: result.estimate[name] for name in settings.nuisances or []},
         "nuisance_interval": {name: [x if math.isfinite(x) else None
                                      for x in result.confidence.interval[name]]
-                              for name in settings.nuisances},
+                              for name in settings.nuisances or []},
         "fitness": result.fitness,
         "confidence": confidence,
         "correction": {"applied": result.objective.correction.applied,
@@ -485,9 +499,9 @@ def _load_of(embedded: Scenario | None, chosen: Scenario | None, settings: Ident
         return embedded.load, "the trace's own scenario"
     if chosen is None or chosen.load.kind == "none":
         return None, ("none: the recording's hinge moment is estimated (nuisance hinge_moment)"
-                      if "hinge_moment" in settings.nuisances else
+                      if "hinge_moment" in (settings.nuisances or []) else
                       "none (no scenario load; hinge moment not estimated)")
-    if "hinge_moment" in settings.nuisances:
+    if "hinge_moment" in (settings.nuisances or []):
         return None, (f"the scenario's {chosen.load.kind} load is not applied to the recording: "
                       "its hinge moment is estimated (nuisance hinge_moment); to state a known "
                       "load instead, identify with --nuisances none or resistance_factor")
@@ -503,12 +517,12 @@ def verdict_text(report: Report) -> str:
 
 @dataclass(frozen=True)
 class Calibration:
-    """A calibration's result (SPEC 7): the ``calibration.json`` content and the calibrated set."""
+    """A calibration's result (docs/reference.md, Calibration): the ``calibration.json`` content and the calibrated set."""
 
     eccentricity_gain: float  # [-] c of Z = c zeta
     r_squared: float
     commutation_loss: float  # [s/rad]
-    signature_error: dict[str, float]  # per fault (SPEC 1)
+    signature_error: dict[str, float]  # per fault (docs/reference.md, The models)
     parameter_set: Path  # the calibrated, complete parameter set (parameters.yaml)
     data: dict[str, Any]
     folder: Path
@@ -516,7 +530,7 @@ class Calibration:
 
 def calibrate(parameters: str | Path = "default", output: str | Path = Path("out") / "calibration",
               ) -> Calibration:
-    """Fit the Monitor's nominal equivalents and Z-zeta gain to the Reference Model (SPEC 7).
+    """Fit the Monitor's nominal equivalents and Z-zeta gain to the Reference Model (docs/reference.md, Calibration).
 
     Writes ``calibration.json``, ``z_vs_zeta.png`` and ``parameters.yaml`` (the input
     set with the calibrated monitor values and a ``changes`` record: complete and
@@ -553,7 +567,7 @@ class SweepOutcome(NamedTuple):
     skipped: int  # cases already finished by an earlier run (--resume)
     failed: int  # cases without a result (see RESULTS_DIR/failures/)
     regressions: list[str]  # figures worse than --baseline beyond their tolerance
-    cases: pd.DataFrame  # one row per finished case (SPEC 6 columns)
+    cases: pd.DataFrame  # one row per finished case (case columns (docs/reference.md, Campaign results))
 
 
 def _read_baseline(path: Path) -> dict:
@@ -577,7 +591,7 @@ def _read_baseline(path: Path) -> dict:
 def sweep(campaign_path: str | Path, output: str | Path | None = None, workers: int | None = None,
           scheduler: str | None = None, resume: bool = False, baseline: str | Path | None = None,
           show_progress: bool = False) -> SweepOutcome:
-    """Run (or resume) a Monte-Carlo campaign and write its case dataset and summary (SPEC 6).
+    """Run (or resume) a Monte-Carlo campaign and write its case dataset and summary (docs/reference.md, Campaign YAML and Campaign results).
 
     Cases run on ``workers`` local processes (default: all cores; 1 runs them in
     this process) or, with ``scheduler``, on a Dask cluster. Each finished case
@@ -692,11 +706,11 @@ def trend(history_path: str | Path, output: str | Path | None = None, simulate: 
     ``trend.json``, ``trend.md`` and ``trend.png``; see :mod:`emaprog.prognosis.fit`.
     """
     from .campaign import cases as campaigns
+    from .config.scenario import load_history
     from .prognosis import history as histories
+    from .prognosis.analysis import analyse
     from .prognosis.fit import LAWS
     from .report import plot_trend, trend_markdown
-    from .config.scenario import load_history
-    from .prognosis.analysis import analyse
 
     if law not in ("auto", *LAWS):
         raise InputError("--law", f"unknown law '{law}' (allowed: auto, {', '.join(LAWS)})")

@@ -8,8 +8,9 @@ from __future__ import annotations
 
 import functools
 import os
+from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, Callable, Optional
+from typing import Annotated
 
 import typer
 
@@ -28,9 +29,9 @@ EXIT_INTERNAL = 1
 EXIT_REGRESSED = 3
 
 # ------------------------------------------------------------ shared options
-OutputDir = Annotated[Optional[Path], typer.Option("--output", "-o", help="Output folder.")]
+OutputDir = Annotated[Path | None, typer.Option("--output", "-o", help="Output folder.")]
 ScenarioOption = Annotated[
-    Optional[Path],
+    Path | None,
     typer.Option("--scenario", "-s", help="Scenario YAML whose identify: block and parameter set to "
                  "use; for a recording without a command channel, its test command."),
 ]
@@ -38,14 +39,14 @@ ParametersOption = Annotated[
     str, typer.Option("--parameters", "-p", help="Parameter set: shipped name or path to a YAML file.")
 ]
 ColumnsOption = Annotated[
-    Optional[Path], typer.Option(
+    Path | None, typer.Option(
         "--columns", "-c",
         help="Column map YAML: read the trace as a rig recording (CSV, .mat, foreign Parquet).")
 ]
 ForceOption = Annotated[bool, typer.Option(
     "--force", help="Overwrite an existing report or unit file (refused otherwise).")]
 ParametersOverride = Annotated[
-    Optional[str], typer.Option(
+    str | None, typer.Option(
         "--parameters", "-p",
         help="Parameter set (shipped name or YAML path); overrides the set the scenario or trace names.")
 ]
@@ -123,7 +124,7 @@ def check(files: Annotated[list[Path], typer.Argument(
 @guarded
 def simulate(
     scenario: Annotated[Path, typer.Argument(help="Scenario YAML.")],
-    output: Annotated[Optional[Path], typer.Option("--output", "-o", help="Trace Parquet to write.")] = None,
+    output: Annotated[Path | None, typer.Option("--output", "-o", help="Trace Parquet to write.")] = None,
     model: Annotated[str, typer.Option("--model", "-m", help="reference | monitor")] = "reference",
     plot: Annotated[bool, typer.Option("--plot", help="Also write a PNG beside the trace.")] = False,
     parameters: ParametersOverride = None,
@@ -136,7 +137,8 @@ def simulate(
     if model not in ("reference", "monitor"):
         raise InputError("--model", f"unknown model '{model}' (allowed: reference, monitor)")
     output = output or Path("out") / f"{load_scenario(scenario).name}-{model}.parquet"
-    api.simulate(scenario, model=model, parameters=parameters, output=output, plot=plot,
+    api.simulate(scenario, model="monitor" if model == "monitor" else "reference",
+                 parameters=parameters, output=output, plot=plot,
                  show_progress=True)
     typer.echo(f"trace: {output}")
     if plot:
@@ -148,7 +150,7 @@ def simulate(
 def convert(
     recording: Annotated[Path, typer.Argument(help="Rig recording: CSV, MATLAB .mat or Parquet.")],
     columns: Annotated[Path, typer.Option("--columns", "-c", help="Column map YAML.")],
-    output: Annotated[Optional[Path], typer.Option("--output", "-o",
+    output: Annotated[Path | None, typer.Option("--output", "-o",
                       help="Trace Parquet to write (default out/RECORDING.parquet).")] = None,
     parameters: ParametersOverride = None,
 ):
@@ -170,10 +172,10 @@ def commission(
     recordings: Annotated[list[Path], typer.Argument(
         help="Recordings of the unit while healthy (the standard test command).")],
     output: Annotated[Path, typer.Option("--output", "-o", help="Unit parameter set YAML to write.")],
-    parameters: Annotated[Optional[str], typer.Option(
+    parameters: Annotated[str | None, typer.Option(
         "--parameters", "-p", help="Base parameter set (shipped name or YAML path); default: default.")] = None,
     columns: ColumnsOption = None,
-    scenario: Annotated[Optional[Path], typer.Option(
+    scenario: Annotated[Path | None, typer.Option(
         "--scenario", "-s", help="The test command as a scenario, for recordings without a "
         "command channel (placed in time by the response).")] = None,
     force: ForceOption = False,
@@ -199,16 +201,16 @@ def commission(
 @app.command(epilog="Example: emaprog identify out/fig10.parquet -o out/fig10-report")
 @guarded
 def identify(
-    trace: Annotated[Path, typer.Argument(help="Measured trace (Parquet, SPEC 4 columns).")],
+    trace: Annotated[Path, typer.Argument(help="Measured trace (Parquet, the trace columns of docs/reference.md).")],
     scenario: ScenarioOption = None,
     output: OutputDir = None,
-    actuator: Annotated[Optional[str], typer.Option(
+    actuator: Annotated[str | None, typer.Option(
         "--actuator", help="Actuator the trace was recorded on (for `emaprog trend`).")] = None,
-    usage: Annotated[Optional[float], typer.Option(
+    usage: Annotated[float | None, typer.Option(
         "--usage", min=0.0, help="Its usage at the recording [flight hours] (for `emaprog trend`).")] = None,
     parameters: ParametersOverride = None,
     columns: ColumnsOption = None,
-    nuisances: Annotated[Optional[str], typer.Option(
+    nuisances: Annotated[str | None, typer.Option(
         "--nuisances", help="Operating conditions to estimate beside the faults: a comma list "
         "of hinge_moment, resistance_factor, or none. Default: both for a real unit (a rig "
         "recording or a commissioned unit's set), none for a twin experiment.")] = None,
@@ -227,7 +229,7 @@ def identify(
                           inspection=inspection, nuisances=_nuisance_list(nuisances),
                           force=force, show_progress=True)
     typer.echo(api.verdict_text(report))
-    typer.echo(f"report: {report.folder / 'report.md'}")
+    typer.echo(f"report: {Path(report.folder or '.') / 'report.md'}")
 
 
 def _nuisance_list(text: str | None) -> list[str] | None:
@@ -277,7 +279,7 @@ def trend(
     law: Annotated[str, typer.Option("--law", help="auto | linear | exponential")] = "auto",
     parameters: Annotated[str, typer.Option(
         "--parameters", "-p", help="Parameter set of the thresholds (tables and reports).")] = "default",
-    workers: Annotated[Optional[int], typer.Option("--workers", "-w", min=1,
+    workers: Annotated[int | None, typer.Option("--workers", "-w", min=1,
                        help="Local worker processes for --simulate (default: all cores).")] = None,
     resume: Annotated[bool, typer.Option("--resume", help="Keep inspections already identified.")] = False,
 ):
@@ -301,12 +303,12 @@ def trend(
 def sweep(
     campaign: Annotated[Path, typer.Argument(help="Campaign YAML.")],
     output: OutputDir = None,
-    workers: Annotated[Optional[int], typer.Option("--workers", "-w", min=1,
+    workers: Annotated[int | None, typer.Option("--workers", "-w", min=1,
                        help="Local worker processes (default: all cores).")] = None,
-    scheduler: Annotated[Optional[str], typer.Option("--scheduler",
+    scheduler: Annotated[str | None, typer.Option("--scheduler",
                          help="Address of a Dask distributed scheduler.")] = None,
     resume: Annotated[bool, typer.Option("--resume", help="Skip finished cases.")] = False,
-    baseline: Annotated[Optional[Path], typer.Option("--baseline",
+    baseline: Annotated[Path | None, typer.Option("--baseline",
                         help="summary.json to compare with; exit 3 if worse.")] = None,
 ):
     """Run a Monte-Carlo campaign of simulate + identify cases (resumable)."""

@@ -22,7 +22,7 @@ one place, :func:`monitor_form`.
 from __future__ import annotations
 
 import math
-from typing import Literal, NamedTuple
+from typing import Any, Literal, NamedTuple
 
 import numpy as np
 
@@ -37,7 +37,7 @@ Layout = Literal["scalar", "per_phase", "polar"]
 
 
 class Quantity(NamedTuple):
-    """One scalar fault quantity (a column stem of the case table, SPEC 6)."""
+    """One scalar fault quantity (a column stem of the case table, docs/reference.md, Campaign results)."""
 
     name: str  # e.g. "short_circuit_a"
     key: str | None  # key inside the fault's YAML mapping ("a", "zeta"); None: the fault is a number
@@ -48,7 +48,7 @@ class Quantity(NamedTuple):
     upper_open: bool
     label: str  # for tables and figures
     measure: Literal["absolute", "relative"]  # how its identification error is measured
-    tolerance: float | None  # SPEC 10 bar on |error| in that measure; None: no bar
+    tolerance: float | None  # tolerance bar on |error| in that measure; None: no bar
     circular: bool  # an angle: wraps around, errors wrapped into (-pi, pi]
 
 
@@ -57,7 +57,7 @@ class ModelError(NamedTuple):
     ``sqrt((factor sigma)^2 + (share d)^2 + (load L)^2)``, ``sigma`` the linearised standard
     error from the fit's residual, ``d`` the estimate's deviation from healthy, ``L`` the
     recording's :func:`fault_load`. ``factor`` [-] widens what the residual shows; ``share``
-    [-] is a relative error of the Monitor's own fault signature (SPEC 1's signature errors
+    [-] is a relative error of the Monitor's own fault signature (the signature errors of docs/reference.md, The models
     are relative: the larger the fault, the larger the part of the error no residual noise
     explains); ``load`` [the quantity's unit] is what the other faults' signature errors
     leave on this quantity per unit of fault load (measured on the twins: a healthy phase's
@@ -91,7 +91,7 @@ class Fault(NamedTuple):
     #: residual's noise does not show. Calibrated with ``benchmarks/interval_factors.py`` on
     #: ``campaigns/calibration-units.yaml`` (400 commissioned spread units), kept apart from
     #: the robustness campaign on which the intervals are then checked.
-    model_error: tuple["ModelError", ...]
+    model_error: tuple[ModelError, ...]
     #: The same for a twin experiment (a trace of emaprog's Reference Model identified with
     #: the very values that produced it: only the Monitor's mismatch is left), calibrated on
     #: ``campaigns/calibration-twins.yaml`` (400 cases) and checked on the quick campaign.
@@ -99,7 +99,7 @@ class Fault(NamedTuple):
     #: under 1 (fitted before, down to 0.2 where the mismatch dwarfed the noise) left twins
     #: with five times the noise covered in 65-82 % of cases (campaigns/off-calibration).
     #: The phases' laws differ: the Monitor's mismatch is not the same on each winding.
-    twin_error: tuple["ModelError", ...]
+    twin_error: tuple[ModelError, ...]
 
     @property
     def magnitudes(self) -> tuple[Quantity, ...]:
@@ -165,9 +165,9 @@ def flatten(faults) -> dict[str, float]:
     return out
 
 
-def nested(values: dict[str, float]) -> dict:
-    """SPEC 5 report shape (``{"short_circuit": {"a": ..}, ...}``) from flat quantities."""
-    out = {}
+def nested(values: dict[str, Any]) -> dict:
+    """The report's shape (docs/reference.md, Identification report) (``{"short_circuit": {"a": ..}, ...}``) from flat quantities."""
+    out: dict[str, Any] = {}
     for fault in CATALOGUE:
         if fault.layout == "scalar":
             out[fault.name] = values[fault.quantities[0].name]
@@ -229,6 +229,6 @@ def fault_load(values, incipient: dict[str, float]):
 
 def worst_phase(values: dict[str, float]) -> str | None:
     """The phase with the largest shorted fraction, or None if all are zero."""
-    fractions = {q.key: values[q.name] for q in FAULTS[PHASE_FAULT].quantities}
-    phase = max(fractions, key=fractions.get)
+    fractions = {str(q.key): values[q.name] for q in FAULTS[PHASE_FAULT].quantities}
+    phase = max(fractions, key=lambda p: fractions[p])
     return phase if fractions[phase] > 0 else None

@@ -186,6 +186,8 @@ def _phase_sentence(report: dict) -> str:
                 f"{isolation['runner_up'].upper()} (confidence {isolation['confidence']:.0%} "
                 f"for {isolation['phase'].upper()}, below the {MIN_PHASE_CONFIDENCE:.0%} a named "
                 "phase needs).")
+    if phase is None:
+        return "Short circuit flagged, phase not determined."
     channel = (report.get("phase_channels") or {}).get(phase)
     named = f"{phase.upper()}" + (f" (logger channel `{channel}`)" if channel else "")
     sentence = f"Faulty phase (largest shorted fraction): {named}."
@@ -313,7 +315,7 @@ def plot_parity(frame, path: str | Path) -> Path:
 
 def plot_error_histograms(errors: dict[str, np.ndarray], tolerances: dict[str, float | None],
                           path: str | Path) -> Path:
-    """Histogram of each quantity's error with its SPEC 10 tolerance band."""
+    """Histogram of each quantity's error with its tolerance band."""
     fig, axes = plt.subplots(2, 4, figsize=(14, 6.5))
     for ax, (quantity, values) in zip(axes.flat, errors.items()):
         if values.size:

@@ -7,7 +7,13 @@ import math
 import numpy as np
 
 from .config.scenario import (
-    ChirpCommand, ConstantCommand, ConstantLoad, NoLoad, RampCommand, SineCommand, SpringLoad,
+    ChirpCommand,
+    ConstantCommand,
+    ConstantLoad,
+    NoLoad,
+    RampCommand,
+    SineCommand,
+    SpringLoad,
     StepCommand,
 )
 

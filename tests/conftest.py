@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from emaprog.config import parameters
+from emaprog.config.scenario import load_scenario
 from emaprog.faults import HEALTHY, MonitorFaults, flatten, monitor_form, reference_form
 from emaprog.kernels.monitor import moving_average
 from emaprog.models import monitor, reference
 from emaprog.models.common import inputs
-from emaprog.config.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIGS = ROOT / "configs"
@@ -24,12 +24,12 @@ def params():
     return parameters.load("default")
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def scenario(name: str):
     return load_scenario(CONFIGS / f"{name}.yaml")
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def reference_run(name: str, faults=None, noise: bool = False):
     """Reference columns and energy ledger of a shipped scenario (cached per session)."""
     sc = scenario(name)
@@ -38,7 +38,7 @@ def reference_run(name: str, faults=None, noise: bool = False):
     return reference.run(p, inputs(sc, p), f, sc.seed, with_noise=noise)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def monitor_run(name: str, faults=None):
     sc = scenario(name)
     p = parameters.load("default")

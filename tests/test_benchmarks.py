@@ -48,8 +48,9 @@ def test_calibration_recovers_the_law_the_errors_were_drawn_with():
     and load 0.001 exactly (their neighbours 0.0375 / 0.0625 and 0.0005 / 0.002 are
     candidates); an angle's factor likewise, with no load, and an angle whose true zeta is
     below the incipient threshold is not counted."""
-    from emaprog.faults import QUANTITIES, fault_load
     from interval_factors import Cases, fit
+
+    from emaprog.faults import QUANTITIES, fault_load
 
     rng = np.random.default_rng(0)
     n = 4000

@@ -17,7 +17,7 @@ from emaprog.models import reference
 
 from .conftest import CONFIGS
 
-#: A unit off the shipped set by ordinary build tolerances (SPEC 11), and its hinge moment.
+#: A unit off the shipped set by ordinary build tolerances (docs/reference.md, Campaign YAML), and its hinge moment.
 UNIT = {"motor_inertia": 1.08, "surface_inertia": 0.92, "motor_viscous": 1.25,
         "static_friction": 1.10, "dynamic_friction": 1.05, "phase_resistance": 1.10,
         "back_emf_constant": 0.98, "phase_inductance": 0.95, "transmission_stiffness": 0.85}
@@ -25,7 +25,7 @@ HINGE = 60.0  # [N m]
 ELECTRICAL = ("phase_resistance", "back_emf_constant", "phase_inductance")
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def unit_parameters():
     spec = parameters.load("default").spec.model_dump()
     for name, factor in UNIT.items():
@@ -132,7 +132,7 @@ def test_identification_against_the_unit_can_use_its_commissioning_recording(tmp
     """`identify.nominal_correction: recording` with a commissioned set subtracts the
     commissioning recording's own residual when the inspection repeats its command on its
     grid, and says so; with the recording gone it falls back to `reference` and says why.
-    The faulty inspection (a 20 % short on B) is identified within SPEC 10 either way."""
+    The faulty inspection (a 20 % short on B) is identified within tolerance either way."""
     import json
     import shutil
 

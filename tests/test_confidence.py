@@ -14,11 +14,19 @@ from emaprog.cli import app
 from emaprog.config import parameters
 from emaprog.config.scenario import Scenario, load_scenario
 from emaprog.identification.confidence import (
-    correlation_length, covariance, information_inverse, is_twin, noise_sigma, quantity_error,
-    quantity_interval, widened,
+    correlation_length,
+    covariance,
+    information_inverse,
+    is_twin,
+    noise_sigma,
+    quantity_error,
+    quantity_interval,
+    widened,
 )
 from emaprog.identification.objective import (
-    Correction, ResidualRecording, recording_correction,
+    Correction,
+    ResidualRecording,
+    recording_correction,
 )
 from emaprog.io.storage import Trace, write_trace
 from emaprog.models import reference

@@ -108,8 +108,8 @@ def test_stagnation_stops_early_and_logbook_is_monotone():
 
 def test_samples_above_the_fit_speed_limit_and_the_start_up_are_left_out(params):
     """identify.max_speed: the error counts only samples the Monitor is trusted at."""
-    from emaprog.identification.objective import fit_speed_limit, sample_weights
     from emaprog.config.scenario import IdentifySettings
+    from emaprog.identification.objective import fit_speed_limit, sample_weights
 
     e = params.spec.electrical
     default = fit_speed_limit(IdentifySettings(), params)
@@ -128,7 +128,7 @@ def test_samples_above_the_fit_speed_limit_and_the_start_up_are_left_out(params)
 def test_both_polishes_bring_a_perturbed_estimate_within_spec(params, method):
     """From Fig. 10's truth moved off by a few tolerances (friction +8 %, backlash +1e-4 rad,
     short circuit A -0.06, zeta +0.08), either local search lowers the fitness and lands
-    within SPEC 10 on every quantity; the least-squares one in far fewer Monitor runs
+    within tolerance on every quantity; the least-squares one in far fewer Monitor runs
     (measured 149 against 623)."""
     from emaprog.config.scenario import load_scenario
     from emaprog.faults import flatten

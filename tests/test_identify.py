@@ -1,6 +1,6 @@
 """Twin experiments: inject faults in the noisy Reference Model, recover them with the GA.
 
-Tolerances are SPEC 10's (friction 5 % relative, backlash 5e-5 rad, shorted
+Tolerances are docs/reference.md's (Faults) (friction 5 % relative, backlash 5e-5 rad, shorted
 fraction 0.03 on the right phase, zeta 0.05), on every shipped config: the
 Monitor's commutation transients, the single-phase start and the polish in the
 eccentricity plane (emaprog.identification.run) brought the last two gaps in.
@@ -23,7 +23,7 @@ from .conftest import CONFIGS
 pytestmark = pytest.mark.slow
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def twin(name: str, tmp: str) -> dict:
     from pathlib import Path
 
@@ -92,7 +92,7 @@ def test_intervals_hold_the_twins_truth(workdir):
     """Over the six shipped twins (42 quantity estimates, 36 with a defined truth for the
     phase) the 90 % intervals hold the truth in at least 80 % (at a true 90 %, fewer than
     80 % of about 40 happens with 3 % probability), every interval holds its estimate, and
-    none is wider than twice SPEC 10's tolerance (measured: about a quarter of it)."""
+    none is wider than twice the tolerance (measured: about a quarter of it)."""
     from emaprog.faults import QUANTITIES, flat_from_nested
 
     covered, total = 0, 0
@@ -148,9 +148,9 @@ def test_unknown_hinge_moment_is_estimated_as_a_nuisance(tmp_path):
     the hinge moment is estimated beside the faults (within 2 N m; measured 0.1-0.4 on the
     regression cases), reported under `nuisance` with no verdict and a 90 % interval that
     holds the truth (measured [57.6, 62.6] N m; no wider than 10 N m: the calibrated law
-    gave a median width of 4.6 N m on the robustness units), and every fault within SPEC
-    10. Without the nuisance the same recording reads friction 0.6 off (the regression
-    cases: 0 of 10 within SPEC)."""
+    gave a median width of 4.6 N m on the robustness units), and every fault within
+    tolerance. Without the nuisance the same recording reads friction 0.6 off (the regression
+    cases: 0 of 10 within tolerance)."""
 
     from emaprog.config.scenario import ConstantLoad, load_scenario
 

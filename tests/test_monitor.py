@@ -5,21 +5,21 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from emaprog.fitting.calibration import SIGNATURE_FAULTS
+from emaprog.config.scenario import IdentifySettings
 from emaprog.faults import HEALTHY, monitor_form, values_of
+from emaprog.fitting.calibration import SIGNATURE_FAULTS
 from emaprog.identification.objective import Objective
+from emaprog.io.storage import Trace
 from emaprog.kernels.monitor import ECCENTRICITY_PAIR, SHORT_CIRCUIT_AVERAGED, short_circuit_factors
 from emaprog.models.common import inputs
-from emaprog.config.scenario import IdentifySettings
-from emaprog.io.storage import Trace
 
-from .conftest import ROOT, MONITOR_HEALTHY, low_pass, monitor_run, nrmse, reference_run, scenario
+from .conftest import MONITOR_HEALTHY, ROOT, low_pass, monitor_run, nrmse, reference_run, scenario
 
 FIG10 = SIGNATURE_FAULTS  # kernel form at the paper's Fig. 10 levels (RM: zeta; MM: Z = c zeta)
 
 
 def test_healthy_monitor_matches_reference():
-    """SPEC 10: equivalent-current NRMSE <= 5 %, position NRMSE <= 2 % (noise-free, 1 ms mean).
+    """Figures of merit: equivalent-current NRMSE <= 5 %, position NRMSE <= 2 % (noise-free, 1 ms mean).
 
     The current is held to 1 %: with the commutation transients modelled it is 0.4 %."""
     ref, _ = reference_run("chirp-nominal", HEALTHY)
@@ -29,7 +29,7 @@ def test_healthy_monitor_matches_reference():
 
 
 def test_fig10_faulty_monitor_matches_reference(params):
-    """All four faults at Fig. 10 levels: current NRMSE <= 10 % (SPEC); held to 2 %, measured 0.6 %."""
+    """All four faults at Fig. 10 levels: current NRMSE <= 10 % (figures of merit); held to 2 %, measured 0.6 %."""
     ref, _ = reference_run("fig10-multiple-faults")
     mon = monitor_run("fig10-multiple-faults")
     assert nrmse(low_pass(mon["current"]), low_pass(ref["current"])) < 0.02
@@ -37,7 +37,7 @@ def test_fig10_faulty_monitor_matches_reference(params):
 
 @pytest.mark.parametrize("fault", sorted(FIG10))
 def test_fault_signature_error(params, fault):
-    """e_sig = ||dMM - dRM|| / ||dRM|| <= 0.35 (SPEC 1): each fault moves both models alike."""
+    """e_sig = ||dMM - dRM|| / ||dRM|| <= 0.35 (docs/reference.md, The models): each fault moves both models alike."""
     f = FIG10[fault]
     c = params.spec.monitor.eccentricity_gain
     ref0, _ = reference_run("chirp-nominal", HEALTHY)
@@ -47,7 +47,7 @@ def test_fault_signature_error(params, fault):
     d_ref = low_pass(ref1["current"]) - low_pass(ref0["current"])
     d_mon = low_pass(mon1["current"]) - low_pass(mon0["current"])
     e_sig = np.linalg.norm((d_mon - d_ref)[100:]) / np.linalg.norm(d_ref[100:])
-    # SPEC's bar is 0.35; with the commutation transients modelled all are <= 0.19 today
+    # the figure of merit is 0.35; with the commutation transients modelled all are <= 0.19 today
     assert e_sig < 0.25, e_sig
 
 
@@ -159,7 +159,7 @@ def test_error_surface_has_its_minimum_at_the_truth(params, quantity, truth, spa
 
 
 def test_calibrate_finds_a_linear_z_zeta_law_and_never_edits_its_input(tmp_path):
-    """SPEC 7: Z = c zeta with r^2 >= 0.95; every fault signature within 0.35.
+    """Calibration (docs/reference.md): Z = c zeta with r^2 >= 0.95; every fault signature within 0.35.
 
     ``calibrate --parameters mine.yaml`` leaves mine.yaml byte for byte as it was
     and writes a complete set with the calibrated values that ``simulate --model
@@ -171,8 +171,8 @@ def test_calibrate_finds_a_linear_z_zeta_law_and_never_edits_its_input(tmp_path)
     import yaml
     from typer.testing import CliRunner
 
-    from emaprog.config import parameters
     from emaprog.cli import app
+    from emaprog.config import parameters
 
     mine = tmp_path / "mine.yaml"
     shutil.copy(parameters.builtin_dir() / "default.yaml", mine)
@@ -212,7 +212,9 @@ def test_pair_eccentricity_law_is_the_reference_law_on_the_active_pair():
 
     from emaprog.kernels.bldc import NEGATIVE_PHASE, POSITIVE_PHASE, phase_coefficient, sector
     from emaprog.kernels.monitor import (
-        eccentricity_offsets, eccentricity_shape, pair_eccentricity_coefficients,
+        eccentricity_offsets,
+        eccentricity_shape,
+        pair_eccentricity_coefficients,
     )
 
     k, z, phi = 0.15, 0.12, 0.7

@@ -18,7 +18,7 @@ from emaprog.io.recordings import UNITS, load_column_map, read_recording
 
 from .conftest import reference_run
 
-#: Fig. 10's true faults (configs/fig10-multiple-faults.yaml) and SPEC 10's tolerances.
+#: Fig. 10's true faults (configs/fig10-multiple-faults.yaml) and the accuracy tolerances.
 FIG10_TRUTH = {"friction": 1.8, "backlash": 4e-4, "short_circuit": {"a": 0.2, "b": 0.0, "c": 0.0},
                "zeta": 0.2}
 RIG_MAP = {
@@ -221,7 +221,7 @@ def test_matlab_v73_without_h5py_gets_a_clear_message(tmp_path, params):
 def test_fig10_rig_recording_at_5_khz_is_identified_within_spec(tmp_path, container):
     """Fig. 10 as a rig logs it (5 kHz, degrees, rpm, mA and A, phase currents only, no
     emaprog metadata, clock starting at 12.5 s) identified through the column map: every
-    quantity within SPEC 10 of the truth (friction 5 % rel., backlash 5e-5 rad, PSC 0.03
+    quantity within tolerance of the truth (friction 5 % rel., backlash 5e-5 rad, PSC 0.03
     per phase on the right phase, zeta 0.05)."""
     cols = rig_columns(step=2)
     if container == "csv":

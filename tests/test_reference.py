@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from emaprog.faults import HEALTHY
-from emaprog.kernels.bldc import POSITIVE_PHASE, NEGATIVE_PHASE, sector
+from emaprog.kernels.bldc import NEGATIVE_PHASE, POSITIVE_PHASE, sector
 from emaprog.kernels.mechanics import borello_velocity, link_torque
 
 from .conftest import low_pass, nrmse, reference_run
@@ -35,6 +35,7 @@ def test_energy_residual_shrinks_with_the_time_step(params):
     from emaprog.models import reference
     from emaprog.models.common import inputs
     from emaprog.numerics import Numerics
+
     from .conftest import scenario
 
     sc = scenario("step-spring-load")
@@ -83,9 +84,10 @@ def test_step_settles_without_limit_cycle(params):
 
 def test_same_seed_same_trace_and_noise_follows_the_seed(params):
     a, _ = reference_run("friction", noise=True)
+    from emaprog.faults import flatten, reference_form
     from emaprog.models import reference
     from emaprog.models.common import inputs
-    from emaprog.faults import flatten, reference_form
+
     from .conftest import scenario
 
     sc = scenario("friction")
@@ -156,9 +158,10 @@ def test_eccentricity_changes_current_but_barely_position():
 
 def test_chunked_run_behind_a_progress_bar_is_the_single_run(params, monkeypatch, capsys):
     """A long run is computed in chunks for its progress bar: same trace, same energy ledger."""
+    from emaprog.faults import flatten, reference_form
     from emaprog.models import reference
     from emaprog.models.common import inputs
-    from emaprog.faults import flatten, reference_form
+
     from .conftest import scenario
 
     sc = scenario("fig10-multiple-faults")

@@ -4,7 +4,7 @@ the same recordings as other loggers write them (no speed channel, a European ex
 pre-roll, two current channels swapped) and mis-mapped ones (exit 2 naming the channel).
 
 The example unit is `default` moved by build tolerances (examples/rig/generate.py), its
-inspections under 30 N m of hinge moment nobody tells emaprog. Tolerances are SPEC 10's
+inspections under 30 N m of hinge moment nobody tells emaprog. Tolerances are docs/reference.md's (Faults)
 (docs/reference.md, Faults): friction 5 % relative, backlash 5e-5 rad, shorted fraction
 0.03 on the right phase, zeta 0.05; the hinge moment must lie in its 90 % interval.
 """
@@ -34,6 +34,8 @@ RIG = ROOT / "examples" / "rig"
 TRUTH = json.loads((RIG / "truth.json").read_text())["recordings"]
 LOGGER_UNITS = {"Time_ms": "ms", "Cmd_deg": "deg", "Pos_deg": "deg", "MotSpd_rpm": "rpm",
                 "Ia_mA": "mA", "Ib_mA": "mA", "Ic_mA": "mA", "MotAng_deg": "deg"}
+#: The example logger's columns (a motor angle only where a test adds one).
+LOGGER_COLUMNS = list(LOGGER_UNITS)[:7]
 
 
 def generator():
@@ -54,7 +56,7 @@ def run(args: list[str]):
 
 
 def within_spec(report: dict, truth: dict) -> list[str]:
-    """Which quantities of a report are outside SPEC 10's tolerance of the truth."""
+    """Which quantities of a report are outside the tolerance of the truth."""
     est = report["estimate"]
     faults = truth["faults"]
     bad = []
@@ -84,7 +86,7 @@ def workdir(tmp_path):
 @pytest.mark.slow
 def test_readme_rig_commands_run_as_written_and_find_the_faults(workdir):
     """Every command of the README's rig section, exactly as written, exits 0; the
-    inspections' estimates are within SPEC 10 of the truth, the short circuit named on B
+    inspections' estimates are within tolerance of the truth, the short circuit named on B
     when flagged, and the unknown 30 N m hinge moment within its 90 % interval."""
     commands = readme_rig_commands()
     assert len(commands) >= 3 and all(c.startswith("emaprog ") for c in commands)
@@ -125,7 +127,7 @@ def write_logger(frame: pd.DataFrame, path: Path, sep=",", decimal=".", preamble
     return path
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def preroll_frames(seconds: float = 0.05) -> dict[str, pd.DataFrame]:
     """The example recordings with the logger started ``seconds`` before the command (the
     unit at rest under its hinge moment from the first sample), in the logger's format."""
@@ -137,7 +139,7 @@ def preroll_frames(seconds: float = 0.05) -> dict[str, pd.DataFrame]:
                                       preroll=seconds)
         cols["time"] = cols["time"] + 12.0  # the logger's own clock
         rows = [r.split(",") for r in gen.logger_rows(cols)]
-        frames[name] = pd.DataFrame(rows, columns=list(LOGGER_UNITS)).astype(float)
+        frames[name] = pd.DataFrame(rows, columns=LOGGER_COLUMNS).astype(float)
     return frames
 
 
@@ -367,7 +369,7 @@ def test_a_rotor_off_the_sensor_zero_is_located_and_its_short_named(tmp_path):
     """A unit whose rotor sits 69 degrees electrical off its angle sensors' zero, logged with
     a motor angle (docs/reference.md, "Phase identity"): the rotor's angle is found from the
     phase currents within 2 degrees (the estimator is within 0.7 on seven Reference
-    recordings), the Fig. 10-like short on winding A is named on A within SPEC 10 (assumed
+    recordings), the Fig. 10-like short on winding A is named on A within tolerance (assumed
     at electrical zero, it was read on C); with Ia and Ib then swapped in the inspection the
     commissioned sensor offset tells which pair was swapped: the short is named on the
     channel now carrying it (Ib) and the identity is said to differ."""
@@ -383,7 +385,7 @@ def test_a_rotor_off_the_sensor_zero_is_located_and_its_short_named(tmp_path):
         cols = gen.simulate_recording(hinge, fault, seed, unit=unit_truth,
                                       electrical_angle=math.radians(69.0))
         frame = pd.DataFrame([r.split(",") for r in gen.logger_rows(cols)],
-                             columns=list(LOGGER_UNITS)[:7]).astype(float)
+                             columns=LOGGER_COLUMNS).astype(float)
         frame["MotAng_deg"] = np.round(np.degrees(cols["motor_angle"]), 4)
         frames[name] = write_logger(frame, tmp_path / name)
     mapping = yaml.safe_load((RIG / "logger.yaml").read_text())

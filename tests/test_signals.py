@@ -4,8 +4,15 @@ import numpy as np
 import pytest
 
 from emaprog import signals
-from emaprog.config.scenario import (ChirpCommand, ConstantLoad, NoLoad, RampCommand, SineCommand,
-                              SpringLoad, StepCommand)
+from emaprog.config.scenario import (
+    ChirpCommand,
+    ConstantLoad,
+    NoLoad,
+    RampCommand,
+    SineCommand,
+    SpringLoad,
+    StepCommand,
+)
 
 
 def test_time_grid_is_uniform_and_stops_before_duration():

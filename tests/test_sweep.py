@@ -23,12 +23,10 @@ import yaml
 from typer.testing import CliRunner
 
 from emaprog import api
-
 from emaprog.campaign import cases as campaigns
-
-from emaprog.config import parameters
 from emaprog.campaign.summary import compare, summarize
 from emaprog.cli import app
+from emaprog.config import parameters
 from emaprog.config.scenario import load_campaign
 
 from .conftest import ROOT
@@ -320,7 +318,7 @@ def test_regression_campaign_meets_its_committed_baseline(tmp_path):
     80 % of all quantities' cases together (at 90 %, under 80 % of 66 happens with about
     0.5 %; the laws were calibrated on other campaigns; measured 59 of 66, friction 7 of 10
     with one case covered by 0.001: 7 of 10 per quantity would fail on a machine whose
-    rounding moves that case), and a median width within twice SPEC 10's tolerance."""
+    rounding moves that case), and a median width within twice the tolerance."""
     campaign = ROOT / "campaigns" / "regression.yaml"
     baseline = ROOT / "campaigns" / "regression-baseline.json"
     result = runner.invoke(app, ["sweep", str(campaign), "-o", str(tmp_path / "regression"),
@@ -339,7 +337,7 @@ def test_regression_campaign_meets_its_committed_baseline(tmp_path):
 
 @pytest.mark.slow
 def test_no_healthy_actuator_is_flagged_faulty(tmp_path):
-    """SPEC 10: 0 of 20 healthy traces flagged faulty (each with its own sensor noise)."""
+    """Figures of merit: 0 of 20 healthy traces flagged faulty (each with its own sensor noise)."""
     outcome = api.sweep(ROOT / "campaigns" / "false-alarms.yaml", tmp_path / "fa",
                         show_progress=False)
     alarms = outcome.summary["false_alarms"]
@@ -393,7 +391,7 @@ def test_unit_spread_and_hinge_moment_draws_keep_old_campaigns_and_stay_in_range
 def test_a_small_robustness_campaign_commissions_each_unit_and_stays_within_spec(tmp_path):
     """The first 4 cases of campaigns/robustness.yaml end to end (spread units, unknown
     hinge moments, each commissioned from its own healthy recording, nuisances): two faulty
-    units identified within SPEC 10 on every quantity, two healthy ones all nominal; each
+    units identified within tolerance on every quantity, two healthy ones all nominal; each
     row carries its commissioning errors (k_e within 8 %: measured 0.6-5.6 % here, p95 5.9 %
     over the 50-case campaign), the estimated hinge moment within 5 N m (measured 0.4-1.3)
     and the intervals."""

@@ -19,9 +19,9 @@ from typer.testing import CliRunner
 
 from emaprog.cli import app
 from emaprog.faults import FAULTS
-from emaprog.prognosis.history import HistoryTable
-from emaprog.prognosis.fit import crossing, growth, predict, prognostic_horizon, relative_accuracy
 from emaprog.prognosis.analysis import analyse
+from emaprog.prognosis.fit import crossing, growth, predict, prognostic_horizon, relative_accuracy
+from emaprog.prognosis.history import HistoryTable
 
 runner = CliRunner()
 USAGE = np.arange(0.0, 2001.0, 250.0)  # [h] nine inspections

@@ -85,3 +85,19 @@ def test_a_short_circuit_split_between_two_phases_names_neither():
     report = {"health": {"short_circuit": "incipient"}, "short_circuit_phase": None,
               "confidence": {"isolation": split}}
     assert "phase not determined: A or B" in _phase_sentence(report)
+
+
+def test_off_the_calibration_an_echo_twin_widens_the_intervals():
+    """A healthy twin driven by a 0.05 rad step: the Monitor reads a backlash of about 4e-5
+    rad on every such twin (campaigns/off-calibration/step.yaml: 22 healthy cases, 3.8-4.6e-5),
+    which the model-error laws, calibrated on the chirp, bound to +-1e-5: the interval
+    excluded the true 0 in all 22. The fit is far above its floor, so an echo twin runs
+    and the backlash interval holds 0; a recording of the calibration's own conditions (the
+    chirp) gets no echo and keeps the laws' interval."""
+    step = {"kind": "step", "amplitude": 0.05, "time": 0.05}
+    report = report_of("chirp-nominal", command=step)
+    echo = report.data["confidence"]["echo"]
+    assert echo is not None and any("noise floor" in r for r in echo["reasons"]), echo
+    low, high = report.data["interval"]["backlash"]
+    assert low <= 0.0 <= high, (low, high)
+    assert report_of("chirp-nominal").data["confidence"]["echo"] is None

@@ -1,4 +1,4 @@
-"""Monte-Carlo fault campaigns (SPEC 6): sampling, execution, and the resumable case dataset.
+"""Monte-Carlo fault campaigns (docs/reference.md, Campaign YAML and Campaign results): sampling, execution, and the resumable case dataset.
 
 A campaign is ``cases`` independent twin experiments on one base scenario:
 draw true faults from the campaign's distributions, simulate the noisy
@@ -41,19 +41,26 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from ..config import parameters as parameter_sets
-from ..errors import InputError
-from ..faults import (
-    CATALOGUE, FAULT_NAMES, PHASE_FAULT, PHASES, QUANTITIES, Fault, flatten, worst_phase,
-)
-from ..identification import identify_trace
-from ..identification.defaults import resolve as resolve_settings
-from ..identification.objective import NUISANCE_DEFAULTS, ResidualRecording, recording_residual
-from ..identification import result as verdicts
-from ..models import reference
-from ..models.common import inputs
 from ..config.parameters import Parameters
 from ..config.scenario import SPREAD_PARAMETERS, Campaign, Faults, IdentifySettings, Scenario
+from ..errors import InputError
+from ..faults import (
+    CATALOGUE,
+    FAULT_NAMES,
+    PHASE_FAULT,
+    PHASES,
+    QUANTITIES,
+    Fault,
+    flatten,
+    worst_phase,
+)
+from ..identification import identify_trace
+from ..identification import result as verdicts
+from ..identification.defaults import resolve as resolve_settings
+from ..identification.objective import NUISANCE_DEFAULTS, ResidualRecording, recording_residual
 from ..io.storage import write_json
+from ..models import reference
+from ..models.common import inputs
 
 SEED_LIMIT = 2**32  # scenario and GA seeds are uint32
 CASE_FILE = "case-{:06d}"
@@ -127,7 +134,7 @@ def sample_case(campaign: Campaign, case_id: int) -> tuple[bool, Faults, int, in
     """
     rng = np.random.default_rng(np.random.SeedSequence(campaign.seed, spawn_key=(case_id,)))
     d = campaign.faults
-    healthy = bool(rng.random() < d.healthy_fraction)
+    healthy = bool(rng.random() < d.healthy_fraction)  # type: ignore[attr-defined]  # built at import
     draws = {f.name: _draw(f.layout, rng) for f in CATALOGUE}
     noise_seed, ga_seed = (int(s) for s in rng.integers(0, SEED_LIMIT, size=2))
     if healthy:
@@ -212,6 +219,7 @@ def commission_case(spec: CaseSpec,
     """
     from ..fitting import commission as commissioning
 
+    assert spec.commission is not None  # the case commissions its unit
     healthy = Scenario.model_validate({**spec.scenario.model_dump(mode="json"),
                                        "faults": Faults().model_dump(mode="json"),
                                        "seed": spec.commission.seed})
@@ -223,7 +231,8 @@ def commission_case(spec: CaseSpec,
         spec.params, {k: fit.values[k] / fit.base[k] for k in fit.values},
         f"case {spec.case_id} commissioned unit")
     true = {**unit.spec.electrical.model_dump(), **unit.spec.mechanical.model_dump()}
-    row = {f"commission_err_{k}": float(v / true[k] - 1.0) for k, v in fit.values.items()}
+    row: dict[str, float | str] = {f"commission_err_{k}": float(v / true[k] - 1.0)
+                                   for k, v in fit.values.items()}
     row["commission_err_hinge_moment"] = float(fit.hinge_moments[0] - spec.commission.hinge_moment)
     row["commission_undetermined"] = ",".join(fit.not_determined)
     # the fit's own (linearised) relative standard errors, NaN where held: what the
@@ -237,7 +246,7 @@ def commission_case(spec: CaseSpec,
 
 
 def run_case(spec: CaseSpec) -> dict:
-    """Simulate and identify one case; the SPEC 6 row (plain Python values).
+    """Simulate and identify one case; the case row (docs/reference.md, Campaign results) (plain Python values).
 
     The trace is the case's unit (``spec.unit``) under its hinge moment; the
     identification knows neither: it starts from ``spec.params`` (or the unit it
@@ -247,7 +256,8 @@ def run_case(spec: CaseSpec) -> dict:
     unit = spec.unit if spec.unit is not None else spec.params
     trace = reference.simulate(with_hinge(spec.scenario, spec.hinge_moment), unit)
     simulated = time.perf_counter()
-    params, commission_row, recordings = spec.params, {}, []
+    params, recordings = spec.params, []
+    commission_row: dict[str, float | str] = {}
     if spec.commission is not None:
         params, commission_row, residual = commission_case(spec, unit)
         recordings = [residual]
@@ -274,7 +284,8 @@ def run_case(spec: CaseSpec) -> dict:
     for name in QUANTITIES:
         row[f"true_{name}"] = float(truth[name])
         row[f"est_{name}"] = float(result.estimate[name])
-        row[f"err_{name}"] = nan if error[name] is None else float(error[name])
+        err = error[name]
+        row[f"err_{name}"] = nan if err is None else float(err)
         low, high = confidence.interval.get(name, (nan, nan))
         row[f"low_{name}"], row[f"high_{name}"] = float(low), float(high)
         row[f"se_{name}"] = float(confidence.standard_error.get(name, nan))
@@ -292,6 +303,9 @@ def run_case(spec: CaseSpec) -> dict:
         "fault_load": float(confidence.fault_load),
         "twin": bool(confidence.twin),
         "basis": confidence.basis,
+        "echo": bool(confidence.echo),
+        **{f"echo_{q}": float((confidence.echo or {}).get("errors", {}).get(q, nan))
+           for q in QUANTITIES},
         "isolation_confidence": float(confidence.isolation["confidence"])
         if confidence.isolation else nan,
         "evaluations": int(result.evaluations),
@@ -299,7 +313,7 @@ def run_case(spec: CaseSpec) -> dict:
         "simulate_s": simulated - start,
         "identify_s": result.elapsed_s,
         "true_hinge_moment": float(spec.hinge_moment),
-        **{f"est_{name}": float(result.estimate[name]) if name in settings.nuisances
+        **{f"est_{name}": float(result.estimate[name]) if name in (settings.nuisances or [])
            else float("nan") for name in NUISANCE_DEFAULTS},
         **{f"{column}_{name}": float(errors.get(name, float("nan")))
            for name in NUISANCE_DEFAULTS
@@ -444,7 +458,7 @@ def _worker_init(numba_threads: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     import numba
 
-    numba.set_num_threads(max(1, min(numba_threads, numba.config.NUMBA_NUM_THREADS)))
+    numba.set_num_threads(max(1, min(numba_threads, numba.config.NUMBA_NUM_THREADS)))  # type: ignore[attr-defined]
 
 
 def run_serial(specs: Iterable[CaseSpec], on_result: OnResult) -> None:
@@ -479,9 +493,9 @@ def run_local(specs: Iterable[CaseSpec], workers: int, on_result: OnResult) -> N
             done, pending = wait(pending, return_when=FIRST_COMPLETED)
             for future in done:
                 on_result(future.result())
-                spec = next(queue, None)
-                if spec is not None:
-                    pending.add(pool.submit(run_case_safely, spec))
+                following = next(queue, None)
+                if following is not None:
+                    pending.add(pool.submit(run_case_safely, following))
     except BaseException:
         for future in pending:
             future.cancel()

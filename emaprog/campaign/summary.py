@@ -1,7 +1,7 @@
 """What a campaign's cases say together: error statistics, detection, false alarms, isolation.
 
 Works on the case table of :class:`emaprog.campaign.cases.CaseStore` only (never
-re-simulates). The tolerances are SPEC 10's identification bars.
+re-simulates). The tolerances are the accuracy tolerances (docs/reference.md, Faults).
 """
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from ..faults import CATALOGUE, FAULT_NAMES, PHASE_FAULT, PHASES, QUANTITIES
 from ..config.parameters import Parameters
+from ..faults import CATALOGUE, FAULT_NAMES, PHASE_FAULT, PHASES, QUANTITIES
 from ..identification.confidence import Z90
 from ..identification.objective import NUISANCE_DEFAULTS
 
@@ -21,17 +21,17 @@ PHASE_NAMES = (*PHASES, "none")
 
 
 class Accuracy(NamedTuple):
-    """How a quantity's error is measured and SPEC 10's bar on it."""
+    """How a quantity's error is measured and the tolerance on it."""
 
     measure: str  # "absolute" | "relative" (error / true value)
-    tolerance: float | None  # SPEC 10 bar on |error| in that measure; None: no bar
+    tolerance: float | None  # tolerance bar on |error| in that measure; None: no bar
 
 
 #: Per quantity, from the fault catalogue.
 ACCURACY = {name: Accuracy(q.measure, q.tolerance) for name, q in QUANTITIES.items()}
 
 #: Regression tolerances of ``sweep --baseline``: a figure is "worse" only past these.
-#: Error percentiles: 25 % relative growth plus a tenth of the SPEC bar, so float-level
+#: Error percentiles: 25 % relative growth plus a tenth of the tolerance, so float-level
 #: differences between machines pass and a real loss of accuracy does not.
 ERROR_GROWTH = 0.25
 ERROR_FLOOR = 0.1
@@ -85,7 +85,7 @@ def summarize(frame: pd.DataFrame, params: Parameters) -> dict:
 
     * error statistics on |estimate - truth| (friction relative to its true value;
       the eccentricity phase only where the true zeta reaches the incipient
-      threshold): mean, median, 95th percentile, max, share within SPEC 10;
+      threshold): mean, median, 95th percentile, max, share within tolerance;
     * detection rate per fault: among cases whose true severity reaches the
       fault's ``incipient`` threshold, the share whose verdict is not nominal;
     * false alarms: among the all-healthy cases, the share with any (and with
@@ -141,7 +141,7 @@ def _intervals(frame: pd.DataFrame, params: Parameters) -> dict | None:
     """Per quantity: how often the 90 % interval holds the truth, and its median width.
 
     Width in the quantity's ACCURACY measure (friction over its true value), set
-    beside twice SPEC 10's tolerance; the phase's arc counts only where the true
+    beside twice the tolerance; the phase's arc counts only where the true
     zeta reaches the incipient threshold (as its error does). Inconclusive
     verdicts are counted per fault.
     """
@@ -294,7 +294,7 @@ failed: {failures}{' (see failures/)' if failures else ''}.
 ## Identification error
 
 Error = estimate - truth (friction relative to its true value). Statistics on |error|;
-"within" is the share inside SPEC 10's tolerance. The eccentricity phase counts only
+"within" is the share inside the tolerance. The eccentricity phase counts only
 cases whose true zeta reaches the incipient threshold.
 
 | quantity | measure | n | bias | median | p95 | max | tolerance | within |
@@ -340,7 +340,7 @@ def _intervals_markdown(summary: dict) -> str:
     inconclusive = ", ".join(f"{f} {_cell(r, '{:.0%}')}" for f, r in block["inconclusive"].items())
     return ("## Confidence\n\nShare of cases whose 90 % interval holds the truth (target "
             "85-95 %), and the interval's median width (friction relative to its true value) "
-            "beside twice SPEC 10's tolerance.\n\n| quantity | n | coverage | median width | "
+            "beside twice the tolerance.\n\n| quantity | n | coverage | median width | "
             "2 x tolerance |\n|---|---|---|---|---|\n" + rows
             + f"\n\nInconclusive verdicts: {inconclusive}.\n\n")
 

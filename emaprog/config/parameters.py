@@ -10,16 +10,20 @@ from __future__ import annotations
 
 from importlib import resources
 from pathlib import Path
-from typing import Annotated, Literal, NamedTuple, Optional
+from typing import Annotated, Literal, NamedTuple
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model, model_validator
 
 from ..errors import InputError, from_validation_error
 from ..faults import CATALOGUE
 from ..kernels.structs import (
-    ControllerParams, ElectricalParams, MechanicalParams, Plant, SensorParams,
+    ControllerParams,
+    ElectricalParams,
+    MechanicalParams,
+    Plant,
+    SensorParams,
 )
-from .yamlfile import load_mapping
+from .yamlfile import catalogue_fields, load_mapping
 
 Pos = Annotated[float, Field(strict=True, gt=0)]
 NonNeg = Annotated[float, Field(strict=True, ge=0)]
@@ -93,7 +97,7 @@ class Monitor(_Section):
     """Monitor Model equivalents; written by `emaprog calibrate`."""
 
     short_circuit_model: Literal["modulated", "averaged"] = Field(
-        description="PSC law of the single-phase equivalent (SPEC 1)"
+        description="PSC law of the single-phase equivalent (docs/reference.md, The models)"
     )
     eccentricity_model: Literal["pair", "paper"] = Field(
         description="RE shape: 'pair' derived from the RM law, 'paper' = Eq. 5"
@@ -125,7 +129,7 @@ class Threshold(_Section):
 #: healthy: :attr:`emaprog.faults.Fault.severity`).
 Health = create_model(
     "Health", __base__=_Section, __module__=__name__,
-    **{f.name: (Threshold, Field(description=f.severity)) for f in CATALOGUE})
+    **catalogue_fields({f.name: (Threshold, Field(description=f.severity)) for f in CATALOGUE}))
 
 
 class FittedValue(_Section):
@@ -141,13 +145,13 @@ class CommissioningRecording(_Section):
 
     file: str = Field(description="the recording (absolute path when it was a file)")
     sha256: str
-    columns: Optional[str] = Field(None, description="the column map it was read through "
+    columns: str | None = Field(None, description="the column map it was read through "
                                                      "(absolute path), null for a trace file")
     hinge_moment: Real = Field(description="[N m] constant hinge moment during the recording")
     hinge_moment_standard_error: NonNeg = Field(description="[N m]")
     residual: dict[str, NonNeg] = Field(description="RMS of the fit residual per signal over the "
                                                     "RMS of the signal [-] (1 ms mean)")
-    phase_identity: Optional[dict] = Field(
+    phase_identity: dict | None = Field(
         None, description="which logger channel carried which model winding (rig recordings "
                           "with three phase currents; docs/reference.md, Rig recordings)")
 
@@ -178,7 +182,7 @@ class ParameterFile(_Section):
     sensors: Sensors
     monitor: Monitor
     health: Health
-    commissioning: Optional[Commissioning] = Field(
+    commissioning: Commissioning | None = Field(
         None, description="a commissioned unit's provenance (emaprog commission)")
 
 

@@ -1,4 +1,4 @@
-"""Scenario, identification and campaign files: pydantic v2 models (SPEC 3, 6).
+"""Scenario, identification and campaign files: pydantic v2 models (docs/reference.md, Scenario YAML and Campaign YAML).
 
 Every model forbids unknown keys and non-finite numbers; every numeric field
 states its unit and range. :func:`load_scenario` and :func:`load_campaign` turn
@@ -9,31 +9,41 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Annotated, Any, Literal, Optional, Union
+from typing import Annotated, Any, Literal
 
-from pydantic import (BaseModel, ConfigDict, Field, ValidationError, ValidationInfo,
-                      create_model, field_validator, model_validator)
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    ValidationInfo,
+    create_model,
+    field_validator,
+    model_validator,
+)
 
 from ..errors import from_validation_error
 from ..faults import CATALOGUE, FAULT_NAMES, FAULTS, Fault, Quantity
 from ..kernels.structs import UNIT_COLUMNS
-from .yamlfile import load_mapping
+from .yamlfile import catalogue_fields, load_mapping
 
 TWO_PI = 2.0 * math.pi
 Name = Annotated[str, Field(pattern=r"^[A-Za-z0-9_-]{1,80}$", description="letters digits - _")]
 
 
-def _num(lo: float | None = None, hi: float | None = None, *, lo_open=False, hi_open=False, **kw):
-    bounds: dict[str, float] = {}
-    if lo is not None:
-        bounds["gt" if lo_open else "ge"] = lo
-    if hi is not None:
-        bounds["lt" if hi_open else "le"] = hi
-    return Annotated[float, Field(strict=True, **bounds, **kw)]
+def _num(lo: float | None = None, hi: float | None = None, *, lo_open: bool = False,
+         hi_open: bool = False, description: str = "") -> Any:
+    """A strict float within bounds, for the models built from the catalogue at import
+    (:func:`create_model`); the hand-written models spell their ``Annotated`` types out."""
+    return Annotated[float, Field(strict=True, description=description,
+                                  gt=lo if lo is not None and lo_open else None,
+                                  ge=lo if lo is not None and not lo_open else None,
+                                  lt=hi if hi is not None and hi_open else None,
+                                  le=hi if hi is not None and not hi_open else None)]
 
 
-Angle = _num(-0.4, 0.4, description="[rad] surface angle, within the end stops")
-Frequency = _num(0.0, 200.0, lo_open=True, description="[Hz]")
+Angle = Annotated[float, Field(strict=True, ge=-0.4, le=0.4, description="[rad] surface angle, within the end stops")]
+Frequency = Annotated[float, Field(strict=True, gt=0.0, le=200.0, description="[Hz]")]
 
 
 class Strict(BaseModel):
@@ -44,14 +54,14 @@ class Strict(BaseModel):
 class StepCommand(Strict):
     kind: Literal["step"]
     amplitude: Angle
-    time: _num(0.0, 60.0, description="[s] step instant") = 0.0
+    time: Annotated[float, Field(strict=True, ge=0.0, le=60.0, description="[s] step instant")] = 0.0
     offset: Angle = 0.0
 
 
 class RampCommand(Strict):
     kind: Literal["ramp"]
-    rate: _num(-10.0, 10.0, description="[rad/s]")
-    time: _num(0.0, 60.0, description="[s] ramp start") = 0.0
+    rate: Annotated[float, Field(strict=True, ge=-10.0, le=10.0, description="[rad/s]")]
+    time: Annotated[float, Field(strict=True, ge=0.0, le=60.0, description="[s] ramp start")] = 0.0
     offset: Angle = 0.0
 
 
@@ -76,7 +86,7 @@ class ConstantCommand(Strict):
 
 
 Command = Annotated[
-    Union[StepCommand, RampCommand, SineCommand, ChirpCommand, ConstantCommand],
+    StepCommand | RampCommand | SineCommand | ChirpCommand | ConstantCommand,
     Field(discriminator="kind"),
 ]
 COMMAND_TAGS = ("step", "ramp", "sine", "chirp", "constant")
@@ -89,16 +99,16 @@ class NoLoad(Strict):
 
 class ConstantLoad(Strict):
     kind: Literal["constant"]
-    torque: _num(-5000.0, 5000.0, description="[N m] hinge moment opposing +deflection")
+    torque: Annotated[float, Field(strict=True, ge=-5000.0, le=5000.0, description="[N m] hinge moment opposing +deflection")]
 
 
 class SpringLoad(Strict):
     kind: Literal["spring"]
-    stiffness: _num(0.0, 1.0e5, description="[N m/rad] aerodynamic spring")
-    torque: _num(-5000.0, 5000.0, description="[N m] constant part") = 0.0
+    stiffness: Annotated[float, Field(strict=True, ge=0.0, le=1.0e5, description="[N m/rad] aerodynamic spring")]
+    torque: Annotated[float, Field(strict=True, ge=-5000.0, le=5000.0, description="[N m] constant part")] = 0.0
 
 
-Load = Annotated[Union[NoLoad, ConstantLoad, SpringLoad], Field(discriminator="kind")]
+Load = Annotated[NoLoad | ConstantLoad | SpringLoad, Field(discriminator="kind")]
 LOAD_TAGS = ("none", "constant", "spring")
 
 
@@ -113,8 +123,8 @@ def _fault_value_type(fault: Fault) -> tuple[Any, Any]:
     if fault.layout == "scalar":
         (q,) = fault.quantities
         return _quantity_field(q), q.healthy
-    model = create_model(_camel(fault.name), __base__=Strict, __module__=__name__,
-                         **{q.key: (_quantity_field(q), q.healthy) for q in fault.quantities})
+    fields: dict[str, Any] = {str(q.key): (_quantity_field(q), q.healthy) for q in fault.quantities}
+    model = create_model(_camel(fault.name), __base__=Strict, __module__=__name__, **fields)
     globals()[model.__name__] = model  # a module attribute, so that instances pickle (sweep workers)
     return model, model()
 
@@ -123,18 +133,18 @@ def _camel(name: str) -> str:
     return "".join(part.capitalize() for part in name.split("_"))
 
 
-#: True faults of a scenario (SPEC 3), one field per catalogue fault; omitted = healthy.
-Faults = create_model("Faults", __base__=Strict, __module__=__name__,
-                      **{f.name: _fault_value_type(f) for f in CATALOGUE})
+#: True faults of a scenario (docs/reference.md, Scenario YAML), one field per catalogue fault; omitted = healthy.
+_FAULT_FIELDS: dict[str, Any] = {f.name: _fault_value_type(f) for f in CATALOGUE}
+Faults = create_model("Faults", __base__=Strict, __module__=__name__, **_FAULT_FIELDS)
 
 
 # ------------------------------------------------------------------ identify
-FaultName = Literal[FAULT_NAMES]
+FaultName = Literal[FAULT_NAMES]  # type: ignore[valid-type]  # the catalogue's names, at import
 
 
 def _check_bounds(value: tuple[float, float], info: ValidationInfo):
     lo, hi = value
-    low, high = FAULTS[info.field_name].bound_limits
+    low, high = FAULTS[str(info.field_name)].bound_limits
     if not (math.isfinite(lo) and math.isfinite(hi)):
         raise ValueError("bounds must be finite numbers")
     if not lo < hi:
@@ -148,13 +158,13 @@ def _check_bounds(value: tuple[float, float], info: ValidationInfo):
 Bounds = create_model(
     "Bounds", __base__=Strict, __module__=__name__,
     __validators__={"_check": field_validator(*FAULT_NAMES)(_check_bounds)},
-    **{f.name: (tuple[float, float], f.default_bounds) for f in CATALOGUE})
+    **catalogue_fields({f.name: (tuple[float, float], f.default_bounds) for f in CATALOGUE}))
 
 
 class Signals(Strict):
-    current: _num(0.0, 1e3, description="[-] weight of the equivalent-current error") = 1.0
-    position: _num(0.0, 1e3, description="[-] weight of the position error") = 0.0
-    speed: _num(0.0, 1e3, description="[-] weight of the speed error") = 0.0
+    current: Annotated[float, Field(strict=True, ge=0.0, le=1e3, description="[-] weight of the equivalent-current error")] = 1.0
+    position: Annotated[float, Field(strict=True, ge=0.0, le=1e3, description="[-] weight of the position error")] = 0.0
+    speed: Annotated[float, Field(strict=True, ge=0.0, le=1e3, description="[-] weight of the speed error")] = 0.0
 
     @model_validator(mode="after")
     def _some_weight(self):
@@ -167,13 +177,13 @@ class GASettings(Strict):
     # omitted: 32 x 20 behind the least-squares polish (as accurate as 64 x 40 on the quick,
     # robustness and regression campaigns at a quarter of the Monitor runs), 64 x 40 for a
     # recording below 2.5 kHz (emaprog.identification.run.ga_budget; README)
-    population: Optional[Annotated[int, Field(strict=True, ge=4, le=4096)]] = Field(
+    population: Annotated[int, Field(strict=True, ge=4, le=4096)] | None = Field(
         None, description="individuals per generation; omitted: 32, or 64 for a recording "
                           "below 2.5 kHz")
-    generations: Optional[Annotated[int, Field(strict=True, ge=1, le=1000)]] = Field(
+    generations: Annotated[int, Field(strict=True, ge=1, le=1000)] | None = Field(
         None, description="omitted: 20, or 40 for a recording below 2.5 kHz")
-    crossover: _num(0.0, 1.0, description="[-] crossover probability") = 0.7
-    mutation: _num(0.0, 1.0, description="[-] mutation probability") = 0.2
+    crossover: Annotated[float, Field(strict=True, ge=0.0, le=1.0, description="[-] crossover probability")] = 0.7
+    mutation: Annotated[float, Field(strict=True, ge=0.0, le=1.0, description="[-] mutation probability")] = 0.2
     seed: Annotated[int, Field(strict=True, ge=0, le=2**32 - 1)] = 1
     strategy: Literal["numpy", "deap"] = Field(
         "numpy", description="numpy: generational GA, elitism, BLX-alpha crossover and decaying "
@@ -202,7 +212,8 @@ class NuisanceBounds(Strict):
     @classmethod
     def _check(cls, value: tuple[float, float], info: ValidationInfo):
         lo, hi = value
-        low, high = {"hinge_moment": (-5000.0, 5000.0), "resistance_factor": (0.5, 2.0)}[info.field_name]
+        low, high = {"hinge_moment": (-5000.0, 5000.0),
+                     "resistance_factor": (0.5, 2.0)}[str(info.field_name)]
         if not (math.isfinite(lo) and math.isfinite(hi)) or not lo < hi:
             raise ValueError(f"need finite bounds, lower below upper (got {lo}, {hi})")
         if lo < low or hi > high:
@@ -220,17 +231,14 @@ class IdentifySettings(Strict):
         "least_squares", description="local search after the GA (with refine): bounded Powell, or "
                               "trust-region least squares on the residual with a batched "
                               "Jacobian")
-    max_speed: Optional[_num(0.0, 1.0e4, lo_open=True,
-                             description="[rad/s] motor speed above which samples are left "
-                                         "out of the error; omitted: 40 % of the DC bus as "
-                                         "pair back-EMF")] = None
-    nuisances: Optional[list[NuisanceName]] = Field(
+    max_speed: Annotated[float, Field(strict=True, gt=0.0, le=10000.0, description="[rad/s] motor speed above which samples are left " "out of the error; omitted: 40 % of the DC bus as " "pair back-EMF")] | None = None
+    nuisances: list[NuisanceName] | None = Field(
         None, description="operating conditions estimated beside the faults and reported under "
                           "`nuisance`, never given a verdict; omitted: both for a real unit (a "
                           "rig recording, or a commissioned unit's set), none for a twin "
                           "experiment (emaprog.identification.defaults)")
     nuisance_bounds: NuisanceBounds = NuisanceBounds()
-    nominal_correction: Optional[Literal["reference", "recording", "none"]] = Field(
+    nominal_correction: Literal["reference", "recording", "none"] | None = Field(
         None, description="what is subtracted from the measured signals before fitting: "
                                  "the healthy Reference-Monitor difference with the set in use, "
                                  "the unit's commissioning recording's residual, or nothing "
@@ -258,7 +266,7 @@ class Scenario(Strict):
     name: Name
     description: str = ""
     parameters: str = Field("default", min_length=1, description="parameter set name or path")
-    duration: _num(0.0, 60.0, lo_open=True, description="[s]")
+    duration: Annotated[float, Field(strict=True, gt=0.0, le=60.0, description="[s]")]
     seed: Annotated[int, Field(strict=True, ge=0, le=2**32 - 1)] = 0
     command: Command
     load: Load = NoLoad(kind="none")
@@ -343,7 +351,7 @@ class PolarDistribution(Strict):
 
 
 def _scalar_within_range(dist, info: ValidationInfo):
-    (q,) = FAULTS[info.field_name].quantities
+    (q,) = FAULTS[str(info.field_name)].quantities
     if dist is not None and (dist.uniform[0] < q.lower or dist.uniform[1] > q.upper):
         raise ValueError(f"uniform range must lie within [{q.lower}, {q.upper}]")
     return dist
@@ -356,8 +364,8 @@ _SCALAR_FAULTS = [f.name for f in CATALOGUE if f.layout == "scalar"]
 FaultDistributions = create_model(
     "FaultDistributions", __base__=Strict, __module__=__name__,
     __validators__={"_scalar": field_validator(*_SCALAR_FAULTS)(_scalar_within_range)},
-    healthy_fraction=(_num(0.0, 1.0, description="[-] share of all-healthy cases"), 0.0),
-    **{f.name: (Optional[DISTRIBUTION[f.layout]], None) for f in CATALOGUE})
+    **catalogue_fields({"healthy_fraction": (_num(0.0, 1.0, description="[-] share of all-healthy cases"), 0.0),
+               **{f.name: (DISTRIBUTION[f.layout] | None, None) for f in CATALOGUE}}))
 
 
 #: Parameters a campaign may spread from unit to unit (relative changes of the set's values).
@@ -374,7 +382,7 @@ def _relative_range(dist, info: ValidationInfo):
 ActuatorSpread = create_model(
     "ActuatorSpread", __base__=Strict, __module__=__name__,
     __validators__={"_range": field_validator(*SPREAD_PARAMETERS)(_relative_range)},
-    **{name: (Optional[Uniform], None) for name in SPREAD_PARAMETERS})
+    **catalogue_fields({name: (Uniform | None, None) for name in SPREAD_PARAMETERS}))
 
 
 class Campaign(Strict):
@@ -382,12 +390,12 @@ class Campaign(Strict):
     description: str = ""
     cases: Annotated[int, Field(strict=True, ge=1, le=1_000_000)]
     seed: Annotated[int, Field(strict=True, ge=0, le=2**32 - 1)] = 0
-    scenario: Union[str, Scenario] = Field(description="base scenario: path or inline mapping")
+    scenario: str | Scenario = Field(description="base scenario: path or inline mapping")
     faults: FaultDistributions
     identify: IdentifySettings = IdentifySettings()
     actuator_spread: ActuatorSpread = Field(
         ActuatorSpread(), description="each case's unit: relative changes of the set's values")
-    hinge_moment: Optional[Uniform] = Field(
+    hinge_moment: Uniform | None = Field(
         None, description="[N m] each case's constant hinge moment, unknown to the identification")
     commission: bool = Field(
         False, description="each case first commissions its own unit from a healthy recording "
@@ -441,10 +449,10 @@ class GrowthLaw(Strict):
     """
 
     law: Literal["linear", "exponential"]
-    initial: _num(0.0, 5.0, description="severity at usage 0 [-] or [rad]")
-    rate: _num(0.0, 1.0, description="[severity/h] linear, [1/h] exponential")
-    variability: _num(0.0, 2.0, description="[-] lognormal sigma of the rate, drawn once per "
-                                            "history from its seed") = 0.0
+    initial: Annotated[float, Field(strict=True, ge=0.0, le=5.0, description="severity at usage 0 [-] or [rad]")]
+    rate: Annotated[float, Field(strict=True, ge=0.0, le=1.0, description="[severity/h] linear, [1/h] exponential")]
+    variability: Annotated[float, Field(strict=True, ge=0.0, le=2.0, description="[-] lognormal sigma of the rate, drawn once per "
+                                            "history from its seed")] = 0.0
 
 
 class PhaseGrowth(GrowthLaw):
@@ -456,7 +464,7 @@ class PhaseGrowth(GrowthLaw):
 class PolarGrowth(GrowthLaw):
     """A ``polar`` fault grows in magnitude at a fixed angle."""
 
-    angle: _num(0.0, TWO_PI, description="[rad] angular position of the narrow gap") = 0.0
+    angle: Annotated[float, Field(strict=True, ge=0.0, le=TWO_PI, description="[rad] angular position of the narrow gap")] = 0.0
 
 
 GROWTH = {"scalar": GrowthLaw, "per_phase": PhaseGrowth, "polar": PolarGrowth}
@@ -471,13 +479,13 @@ def _some_fault(self):
 #: Growth law of each degrading fault of a synthetic history.
 Growth = create_model(
     "Growth", __base__=Strict, __module__=__name__,
-    __validators__={"_some_fault": model_validator(mode="after")(_some_fault)},
-    **{f.name: (Optional[GROWTH[f.layout]], None) for f in CATALOGUE})
+    __validators__=catalogue_fields({"_some_fault": model_validator(mode="after")(_some_fault)}),
+    **catalogue_fields({f.name: (GROWTH[f.layout] | None, None) for f in CATALOGUE}))
 
 
 class Inspections(Strict):
-    start: _num(0.0, 1.0e6, description="[h] usage of the first inspection") = 0.0
-    step: _num(0.0, 1.0e5, lo_open=True, description="[h] usage between inspections")
+    start: Annotated[float, Field(strict=True, ge=0.0, le=1.0e6, description="[h] usage of the first inspection")] = 0.0
+    step: Annotated[float, Field(strict=True, gt=0.0, le=1.0e5, description="[h] usage between inspections")]
     count: Annotated[int, Field(strict=True, ge=3, le=500)]
 
 
@@ -488,7 +496,7 @@ class History(Strict):
     description: str = ""
     actuator: Name = "actuator-1"
     seed: Annotated[int, Field(strict=True, ge=0, le=2**32 - 1)] = 0
-    scenario: Union[str, Scenario] = Field(description="base scenario: path or inline mapping")
+    scenario: str | Scenario = Field(description="base scenario: path or inline mapping")
     inspections: Inspections
     growth: Growth
     identify: IdentifySettings = IdentifySettings()

@@ -92,3 +92,9 @@ def parse_mapping(text: str, source: str | Path) -> dict[str, Any]:
     if bad:
         raise InputError(source, f"keys must be text, got {bad[0]!r}")
     return data
+
+
+def catalogue_fields(fields: dict[str, Any]) -> dict[str, Any]:
+    """Field definitions of a pydantic model built from the fault catalogue at import
+    (``create_model``'s keyword arguments, typed for it)."""
+    return fields

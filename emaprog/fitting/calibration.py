@@ -1,4 +1,4 @@
-"""Calibration of the Monitor Model against the Reference Model (SPEC 7).
+"""Calibration of the Monitor Model against the Reference Model (docs/reference.md, Calibration).
 
 Three steps on the healthy and faulty chirp of the parameter set, all noise-free:
 
@@ -10,7 +10,7 @@ Three steps on the healthy and faulty chirp of the parameter set, all noise-free
 2. ``eccentricity_gain`` c of ``Z = c zeta``: for each zeta of a grid over
    [0, 0.8] the Z that best reproduces the Reference current (batched scan,
    then a bounded scalar search), then least squares through the origin, r^2.
-3. ``signature_error`` per fault at the paper's Fig. 10 levels (SPEC 1).
+3. ``signature_error`` per fault at the paper's Fig. 10 levels (docs/reference.md, The models).
 """
 
 from __future__ import annotations
@@ -22,15 +22,15 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from .. import signals
+from ..config.parameters import Parameters
+from ..config.scenario import ChirpCommand, NoLoad
 from ..faults import HEALTHY, ZETA_COLUMN, MonitorFaults, monitor_form, values_of
+from ..identification.objective import FILTER_SECONDS, STARTUP_SECONDS, low_pass
 from ..kernels.monitor import evaluate_population
 from ..kernels.structs import ErrorTarget, MonitorOptions, unit_row
-from ..identification.objective import FILTER_SECONDS, STARTUP_SECONDS, low_pass
 from ..models import monitor, reference
 from ..models.common import Inputs
 from ..numerics import DEFAULT
-from ..config.parameters import Parameters
-from ..config.scenario import ChirpCommand, NoLoad
 
 ZETA_GRID = np.linspace(0.1, 0.8, 8)
 #: The paper's Fig. 10 levels, one fault at a time (physical form: eccentricity as zeta).
@@ -108,7 +108,7 @@ def fit_eccentricity(params: Parameters, inp: Inputs,
                                with_noise=False)
         fit = Fit(params, inp, ref["current"])
 
-        def error(z: float) -> float:
+        def error(z: float, fit: Fit = fit) -> float:
             row = np.asarray(MONITOR_HEALTHY._replace(eccentricity_z=z), float)[None]
             return float(fit(row, opts)[0])
 

@@ -39,7 +39,11 @@ from ..errors import InputError
 from ..faults import healthy_values, monitor_form
 from ..identification.confidence import correlation_length, information_inverse
 from ..identification.objective import (
-    FILTER_SECONDS, STARTUP_SECONDS, filter_lag, fine_plant, low_pass,
+    FILTER_SECONDS,
+    STARTUP_SECONDS,
+    filter_lag,
+    fine_plant,
+    low_pass,
 )
 from ..io.recordings import derived_speed, speed_source_of
 from ..io.storage import Trace
@@ -60,7 +64,7 @@ class Unknown(NamedTuple):
 
 
 #: The unit-to-unit parameters, with plausible bounds (factor on the base value): wider
-#: than build tolerances (SPEC 11) so that a bound is never what stops the fit.
+#: than build tolerances (docs/reference.md, Campaign YAML) so that a bound is never what stops the fit.
 UNKNOWNS = (
     Unknown("motor_inertia", "mechanical", 0.6, 1.6),
     Unknown("surface_inertia", "mechanical", 0.6, 1.6),
@@ -73,7 +77,7 @@ UNKNOWNS = (
     Unknown("transmission_stiffness", "mechanical", 0.4, 2.0),
 )
 #: [-] standard error of a log factor above which a parameter counts as not determined
-#: (5 %: half the smallest build tolerance of SPEC 11 that matters, the inertias' 10 %).
+#: (5 %: half the smallest build tolerance (docs/reference.md, Campaign YAML) that matters, the inertias' 10 %).
 MAX_LOG_ERROR = 0.05
 #: Finite-difference step of the Jacobian (in log factor, and hinge moment / HINGE_SCALE).
 DIFF_STEP = 1e-4
@@ -164,7 +168,9 @@ def prepare(trace: Trace, source: str, params: Parameters) -> Recording:
     width = max(1, round(FILTER_SECONDS * recording_rate))
     instants = recorded_instants(trace.time, inputs.time,
                                  filter_lag(width_model, rate) - filter_lag(width, recording_rate))
-    measured = tuple(low_pass(trace[name], width) for name in ("current", "position", "speed"))
+    current, position, speed = (low_pass(trace[name], width)
+                                for name in ("current", "position", "speed"))
+    measured = (current, position, speed)
     mask = np.ones(trace.time.size, bool)
     mask[: round(STARTUP_SECONDS * recording_rate)] = False
     scales = np.array([max(float(np.sqrt(np.mean(m[mask] ** 2))), 1e-12) for m in measured])
@@ -307,7 +313,7 @@ def fit(recordings: list[Recording], params: Parameters) -> Fit:
     degenerate = _weak_directions(free, information, cov)
     hinge_cov = np.diag(cov)[len(free):]
     residuals, parts = [], np.split(result.fun, np.cumsum([3 * r.mask.sum() for r in recordings])[:-1])
-    for recording, part in zip(recordings, parts):
+    for _recording, part in zip(recordings, parts):
         per_signal = np.split(part, 3)
         residuals.append({name: float(np.sqrt(np.mean(p ** 2)))
                           for name, p in zip(("current", "position", "speed"), per_signal)})

@@ -57,7 +57,13 @@ from typing import NamedTuple
 import numpy as np
 
 from ..faults import (
-    CATALOGUE, FAULTS, PHASE_FAULT, QUANTITIES, ModelError, fault_load, worst_phase,
+    CATALOGUE,
+    FAULTS,
+    PHASE_FAULT,
+    QUANTITIES,
+    ModelError,
+    fault_load,
+    worst_phase,
 )
 from ..kernels.structs import Plant
 from ..signals import correlation_length, noise_sigma
@@ -151,6 +157,7 @@ class Confidence(NamedTuple):
     linear_error: dict[str, float]  # the linearised standard errors, before the laws
     fault_load: float  # the estimate's :func:`~emaprog.faults.fault_load` [-]
     basis: str = "unit"  # which model-error laws were used (:data:`BASES`)
+    echo: dict | None = None  # off the calibration: {"reasons", "errors"} (:mod:`.echo`)
 
 
 def noise_floor(objective: Objective, trace, fitness: float) -> NoiseFloor:
@@ -389,9 +396,12 @@ def quantity_interval(name: str, value, se):
 
 def assess(objective: Objective, trace, values: dict[str, float], fitness: float,
            estimated: list[str], health_limits, twin: bool = False,
-           basis: str | None = None) -> Confidence:
+           basis: str | None = None, echo: dict | None = None) -> Confidence:
     """Noise floor, intervals, identifiability and isolation of one identification;
-    ``basis`` (:data:`BASES`) which model-error laws apply (default: twin or unit)."""
+    ``basis`` (:data:`BASES`) which model-error laws apply (default: twin or unit);
+    ``echo`` (:mod:`.echo`, ``{"reasons", "errors"}``) the echo twin's error per quantity:
+    taken into each standard error in quadrature, and the interval also spans the one about
+    the estimate less that error (the bootstrap's bias correction; an arc widens by it)."""
     basis = basis or ("twin" if twin else "unit")
     floor = noise_floor(objective, trace, fitness)
     residual, blocks = residual_vector(objective, values)
@@ -415,24 +425,40 @@ def assess(objective: Objective, trace, values: dict[str, float], fitness: float
     load = fault_load(values, {f.name: getattr(health_limits, f.name).incipient
                                for f in CATALOGUE})
     widening = mismatch_widening(floor.ratio, basis)
+    # the echo's error less what its own noise explains: sign(e) sqrt(e^2 - sigma^2), with
+    # sigma the linearised (noise) standard error; on twins with five times the noise the
+    # raw error widened PSC B's intervals to 99 % coverage, this to 97 %
+    signed = {k: math.copysign(math.sqrt(max(e * e - linear.get(k, 0.0) ** 2, 0.0)), e)
+              if math.isfinite(linear.get(k, 0.0)) else 0.0
+              for k, e in (echo or {}).get("errors", {}).items()}
+    echoed = {k: abs(v) for k, v in signed.items()}
     for name, s in linear.items():
         if name in plane:
             continue
         q = QUANTITIES.get(name)
         if q is None:  # a nuisance: never a verdict, an interval all the same
             deviation = abs(values[name] - NUISANCE_DEFAULTS[name])
-            se = standard_error[name] = widening * widened(quantity_error(name, basis), s,
-                                                           deviation, load)
-            interval[name] = (values[name] - Z90 * se, values[name] + Z90 * se)
+            se = standard_error[name] = math.hypot(
+                widening * widened(quantity_error(name, basis), s, deviation, load),
+                echoed.get(name, 0.0))
+            shift = signed.get(name, 0.0)
+            interval[name] = (min(values[name], values[name] - shift) - Z90 * se,
+                              max(values[name], values[name] - shift) + Z90 * se)
             continue
         deviation = 0.0 if q.circular else abs(values[name] - q.healthy)
-        standard_error[name] = widening * widened(quantity_error(name, basis), s, deviation, load)
+        standard_error[name] = math.hypot(
+            widening * widened(quantity_error(name, basis), s, deviation, load),
+            echoed.get(name, 0.0))
         if q.circular:
-            arc = Z90 * standard_error[name]
+            arc = Z90 * standard_error[name] + echoed.get(name, 0.0)
             interval[name] = ((0.0, 2.0 * math.pi) if arc >= math.pi
                               else (values[name] - arc, values[name] + arc))
         else:
             interval[name] = quantity_interval(name, values[name], standard_error[name])
+            if name in signed:  # and about the echo's bias-corrected estimate
+                other = quantity_interval(name, values[name] - signed[name], standard_error[name])
+                interval[name] = (min(interval[name][0], other[0]),
+                                  max(interval[name][1], other[1]))
     linear = {name: s for name, s in linear.items() if name not in plane}
     inconclusive = {}
     why_not = uninformative(objective, trace, floor)
@@ -468,8 +494,12 @@ def assess(objective: Objective, trace, values: dict[str, float], fitness: float
               + f"; fault load {load:.3g}; calibrated on separate calibration campaigns to "
               f"90 % coverage; x{widening:.3g} for a fit {floor.ratio:.3g} x its noise floor, "
               f"over the {MISMATCH_RATIO[basis]:g} x the laws were calibrated under)")
+    if echo:
+        method += ("; off the calibration (" + "; ".join(echo["reasons"]) + "): each standard "
+                   "error takes the echo twin's error in quadrature and the interval spans the one "
+                   "about the estimate less that error (docs/reference.md, Confidence)")
     return Confidence(floor, interval, standard_error, inconclusive, isolation, method, twin,
-                      linear, load, basis)
+                      linear, load, basis, echo)
 
 
 def _isolation(objective: Objective, values: dict[str, float], fitness: float, samples: int,
@@ -506,6 +536,9 @@ def confidence_record(confidence: Confidence) -> dict:
         "standard_error": {q: finite(v) for q, v in confidence.standard_error.items()},
         "inconclusive": confidence.inconclusive,
         "isolation": confidence.isolation,
+        "echo": ({"reasons": confidence.echo["reasons"],
+                  "errors": {q: float(v) for q, v in confidence.echo["errors"].items()}}
+                 if confidence.echo else None),
     }
 
 

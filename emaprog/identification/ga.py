@@ -21,12 +21,11 @@ Both start from the same Latin hypercube and spend ``population x (generations
 
 from __future__ import annotations
 
+import random
 from collections.abc import Callable, Sequence
 from typing import NamedTuple
 
 import numpy as np
-import random
-
 from deap import algorithms, base, creator, tools
 
 # DEAP's creator registers classes module-wide: create them once, at import.
@@ -93,15 +92,15 @@ def _offspring(parents: np.ndarray, circular: np.ndarray, options: GAOptions, si
         span = np.abs(delta) * (1.0 + 2.0 * options.blend)
         children[j] = a + lo + span * rng.random(d)
         children[j + 1] = a + lo + span * rng.random(d)
-    mutate = rng.random(m) < options.mutation
+    mutate = np.less(rng.random(m), options.mutation)
     per_gene = rng.random((m, d)) < max(1.0 / d, 0.3)
     steps = rng.normal(0.0, sigma, size=(m, d))
     children += np.where(mutate[:, None] & per_gene, steps, 0.0)
     return _wrap_or_reflect(children, circular)
 
 
-def minimize(fitness_of: BatchFitness, dims: int, options: GAOptions = GAOptions(),
-             seed: int = 0, circular: Sequence[bool] | None = None,
+def minimize(fitness_of: BatchFitness, dims: int, options: GAOptions | None = None,
+             seed: int = 0, circular: Sequence[bool] | np.ndarray | None = None,
              initial: np.ndarray | None = None,
              on_generation: Callable[[int, float], None] | None = None) -> GAResult:
     """Minimise ``fitness_of`` over [0, 1]^dims with the strategy ``options.strategy``.
@@ -110,6 +109,7 @@ def minimize(fitness_of: BatchFitness, dims: int, options: GAOptions = GAOptions
     evenly), optionally with ``initial`` rows (e.g. the healthy point) in front.
     ``on_generation(gen, best)`` is called after every generation.
     """
+    options = options if options is not None else GAOptions()
     if options.strategy == "deap":
         return _deap_ga(fitness_of, dims, options, seed, initial, on_generation)
     if options.strategy != "numpy":
@@ -189,7 +189,7 @@ def _statistics() -> tools.Statistics:
 
 
 def _numpy_ga(fitness_of: BatchFitness, dims: int, options: GAOptions, seed: int,
-              circular: Sequence[bool] | None, initial: np.ndarray | None,
+              circular: Sequence[bool] | np.ndarray | None, initial: np.ndarray | None,
               on_generation: Callable[[int, float], None] | None) -> GAResult:
     """The ``numpy`` strategy: a generational GA (module docstring).
 

@@ -1,6 +1,6 @@
 """The identification objective: genes in [0, 1] -> fault values -> Monitor error vs a trace.
 
-Fitness (SPEC 1, 5): ``sum_s w_s ||lp(MM_s) - lp(meas_s)||^2 / ||lp(meas_s)||^2``
+Fitness (docs/reference.md, The models): ``sum_s w_s ||lp(MM_s) - lp(meas_s)||^2 / ||lp(meas_s)||^2``
 over s in (current, position, speed), on the measured samples after the
 start-up window, where ``lp`` is a centred 1 ms moving average applied to both
 signals (it removes the Reference/real motor's switching ripple and most of the
@@ -13,7 +13,7 @@ of about 2 % (commutation dips, freewheeling currents), as large as the
 signatures of incipient faults and partly aligned with them, so it biases the
 estimates. The correction subtracts that residual from the measured signals:
 the optimiser then fits the Monitor's *fault-induced* change to the measured
-one, which is what fault-signature fidelity (SPEC 1) guarantees. Two sources:
+one, which is what fault-signature fidelity (docs/reference.md, The models) guarantees. Two sources:
 
 * ``reference`` -- the healthy Reference minus the healthy Monitor, noise-free,
   both with the parameter set in use, on the trace's own command (assumes the
@@ -34,20 +34,29 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..config.parameters import Parameters
+from ..config.scenario import IdentifySettings
 from ..faults import (
-    CATALOGUE, HEALTHY, QUANTITIES, ZETA_COLUMN, healthy_values, monitor_form,
+    CATALOGUE,
+    HEALTHY,
+    QUANTITIES,
+    ZETA_COLUMN,
+    healthy_values,
+    monitor_form,
 )
+from ..io.storage import Trace
 from ..kernels.monitor import (
-    U_HINGE_MOMENT, U_PHASE_RESISTANCE, evaluate_population, evaluate_residuals, moving_average,
+    U_HINGE_MOMENT,
+    U_PHASE_RESISTANCE,
+    evaluate_population,
+    evaluate_residuals,
+    moving_average,
     unit_plant,
 )
 from ..kernels.structs import ErrorTarget, Plant, unit_row
 from ..models import monitor, reference
 from ..models.common import Inputs, recorded_instants
 from ..numerics import DEFAULT, Numerics
-from ..config.parameters import Parameters
-from ..config.scenario import IdentifySettings
-from ..io.storage import Trace
 
 FILTER_SECONDS = 1e-3  # [s] moving-average window of the error function
 STARTUP_SECONDS = 0.01  # [s] left out of the error: initial transient of the loops
@@ -121,7 +130,7 @@ def fit_speed_limit(settings: IdentifySettings, params: Parameters) -> float:
     commutations over much of a sector, and the Monitor's averaged-duty
     commutation model (:func:`~emaprog.kernels.monitor.commutation_step`) is
     least faithful there. Measured on the 50-case quick campaign: with the
-    samples above 360 rad/s left out, zeta within SPEC 10 in 80 % of cases
+    samples above 360 rad/s left out, zeta within tolerance in 80 % of cases
     instead of 68 %, no false alarm where a fault is absent (friction 11 %,
     short circuit 10 % with every sample), other quantities unchanged within
     a few cases.
@@ -178,14 +187,14 @@ class Objective:
             signal = correction.signals[name]
             return trace[name] - (self.instants.sample(signal) if correction.on_grid else signal)
 
-        targets = tuple(low_pass(corrected(name), self.measured_width)
-                        for name in ("current", "position", "speed"))
+        current, position, speed = (low_pass(corrected(name), self.measured_width)
+                                    for name in ("current", "position", "speed"))
         self.speed_limit = fit_speed_limit(settings, params)
         sample_weight = sample_weights(low_pass(trace["speed"], self.measured_width),
                                        self.speed_limit,
                                        min(round(STARTUP_SECONDS * recording_rate), n // 10))
         w = settings.signals
-        self.target = ErrorTarget(*targets, np.array([w.current, w.position, w.speed], dtype=np.float64),
+        self.target = ErrorTarget(current, position, speed, np.array([w.current, w.position, w.speed], dtype=np.float64),
                                   self.filter_width, sample_weight, self.instants.index,
                                   self.instants.fraction)
         self.lower = np.array([g.lower for g in self.genes])

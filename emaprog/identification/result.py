@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import math
 
-from ..faults import CATALOGUE, severity
 from ..config.parameters import Parameters
+from ..faults import CATALOGUE, severity
 
 VERDICTS = ("nominal", "incipient", "degraded", "inconclusive")
 

@@ -3,23 +3,31 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
-from scipy.optimize import least_squares, minimize as local_minimize
+from scipy.optimize import least_squares
+from scipy.optimize import minimize as local_minimize
 
 from .. import progress
-from ..errors import InputError
-from ..faults import CATALOGUE, FAULTS, PHASE_FAULT
-from ..models.common import Inputs
-from ..numerics import DEFAULT, Numerics, serial_blas
 from ..config.parameters import Parameters
 from ..config.scenario import IdentifySettings
+from ..errors import InputError
+from ..faults import CATALOGUE, FAULTS, PHASE_FAULT
 from ..io.storage import Trace
-from .confidence import Confidence, assess, basis_of, is_twin
+from ..models.common import Inputs
+from ..numerics import DEFAULT, Numerics, serial_blas
+from .confidence import MISMATCH_RATIO, Confidence, assess, basis_of, is_twin, uninformative
+from .echo import echo_errors, off_calibration
 from .ga import GAOptions, minimize
 from .objective import (
-    NO_CORRECTION, Correction, Objective, ResidualRecording, fine_plant, recording_correction,
+    NO_CORRECTION,
+    Correction,
+    Objective,
+    ResidualRecording,
+    fine_plant,
+    recording_correction,
     reference_correction,
 )
 
@@ -33,7 +41,7 @@ JACOBIAN_STEP = 1e-3
 #: the least-squares polish (README: as accurate as 64 x 40 on the campaigns, a quarter of the
 #: Monitor runs), :data:`LOW_RATE_GA` for a recording slower than :data:`LOW_RATE` [Hz], where
 #: the aliased commutation structure makes the search harder. Measured
-#: (``benchmarks/rates.py``, 10 regression cases) at 1 kHz: 32 x 20 within SPEC 10 on the
+#: (``benchmarks/rates.py``, 10 regression cases) at 1 kHz: 32 x 20 within tolerance on the
 #: short circuit in 80 % of cases and on zeta in 60 %, 64 x 40 in 90 % and 100 %; at 2 kHz and
 #: above both budgets are level.
 DEFAULT_GA = (GAOptions().population, GAOptions().generations)
@@ -203,7 +211,7 @@ def polish(objective: Objective, start: np.ndarray, fitness: float,
 
 def choose_correction(trace: Trace, inputs: Inputs, params: Parameters,
                       settings: IdentifySettings, numerics: Numerics = DEFAULT,
-                      recordings: list[ResidualRecording | str] = ()) -> Correction:
+                      recordings: Sequence[ResidualRecording | str] = ()) -> Correction:
     """The nominal-discrepancy correction ``identify.nominal_correction`` asks for.
 
     ``recordings``: the unit's commissioning recordings' residuals (or, for one that
@@ -227,7 +235,7 @@ def choose_correction(trace: Trace, inputs: Inputs, params: Parameters,
 
 def identify_trace(trace: Trace, inputs: Inputs, params: Parameters, settings: IdentifySettings,
                    numerics: Numerics = DEFAULT, show_progress: bool = True,
-                   recordings: list[ResidualRecording | str] = (),
+                   recordings: Sequence[ResidualRecording | str] = (),
                    commissioned: bool | None = None) -> Identification:
     """Run the GA (and optional refinement) on one trace; nothing is written.
 
@@ -259,8 +267,17 @@ def identify_trace(trace: Trace, inputs: Inputs, params: Parameters, settings: I
     if commissioned is None:
         commissioned = params.spec.commissioning is not None
     twin = is_twin(trace, params)
+    basis = basis_of(twin, commissioned)
     confidence = assess(objective, trace, estimate, best_fitness, settings.estimate,
-                        params.spec.health, twin=twin, basis=basis_of(twin, commissioned))
+                        params.spec.health, twin=twin, basis=basis)
+    reasons = off_calibration(trace, confidence.floor.sigma, confidence.floor.ratio,
+                              MISMATCH_RATIO[basis])
+    if reasons and uninformative(objective, trace, confidence.floor) is None:
+        errors = echo_errors(objective, trace, estimate, settings, confidence.floor.sigma,
+                             numerics)
+        confidence = assess(objective, trace, estimate, best_fitness, settings.estimate,
+                            params.spec.health, twin=twin, basis=basis,
+                            echo={"reasons": reasons, "errors": errors})
     return Identification(
         estimate=estimate, ga_estimate=objective.values(result.best),
         fitness=best_fitness, ga_fitness=result.fitness, evaluations=objective.evaluations,

@@ -22,7 +22,7 @@ from __future__ import annotations
 import io
 import re
 from pathlib import Path
-from typing import Literal, NamedTuple, Optional
+from typing import Literal, NamedTuple
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
@@ -42,26 +42,26 @@ class CsvOptions(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    delimiter: Optional[Literal[",", ";", "tab", "space"]] = Field(
+    delimiter: Literal[",", ";", "tab", "space"] | None = Field(
         None, description="field separator; omitted: detected")
-    decimal: Optional[Literal[".", ","]] = Field(None, description="decimal mark; omitted: detected")
-    header_line: Optional[int] = Field(
+    decimal: Literal[".", ","] | None = Field(None, description="decimal mark; omitted: detected")
+    header_line: int | None = Field(
         None, ge=1, description="1-based line number of the header (column names); omitted: found")
-    units_lines: Optional[int] = Field(
+    units_lines: int | None = Field(
         None, ge=0, le=10, description="lines between the header and the data (units rows); "
                                       "omitted: found")
     encoding: str = Field("utf-8", description="text encoding (latin-1 is tried when utf-8 fails)")
 
 
 class Dialect(NamedTuple):
-    delimiter: Optional[str]  # None: runs of white space
+    delimiter: str | None  # None: runs of white space
     decimal: str
     header: int  # 0-based line index of the header
     data: int  # 0-based line index of the first data line
     fields: int
 
 
-def _split(line: str, delimiter: Optional[str]) -> list[str]:
+def _split(line: str, delimiter: str | None) -> list[str]:
     parts = line.split() if delimiter is None else line.split(delimiter)
     return [p.strip().strip('"').strip() for p in parts]
 
@@ -77,14 +77,14 @@ def _numeric(fields: list[str], decimal: str) -> bool:
     return numbers >= 1 and 2 * sum(_is_number(f, decimal) for f in fields) >= len(fields)
 
 
-def _candidates(options: CsvOptions) -> list[tuple[Optional[str], str]]:
+def _candidates(options: CsvOptions) -> list[tuple[str | None, str]]:
     delimiters = ([DELIMITERS[options.delimiter]] if options.delimiter is not None
                   else [",", ";", "\t", None])
     decimals = [options.decimal] if options.decimal is not None else [".", ","]
     return [(d, m) for d in delimiters for m in decimals if not (d == "," and m == ",")]
 
 
-def _trailing_rows(lines: list[str], delimiter: Optional[str], decimal: str) -> tuple[int, int]:
+def _trailing_rows(lines: list[str], delimiter: str | None, decimal: str) -> tuple[int, int]:
     """(count, run): the field count of the last line and how many lines at the end of the
     file (at most :data:`TAIL_LINES`) are data rows of that count."""
     count = len(_split(lines[-1], delimiter))

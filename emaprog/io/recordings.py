@@ -27,12 +27,20 @@ from __future__ import annotations
 
 import hashlib
 import math
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable, Literal, Optional
+from typing import Any, Literal
 
 import numpy as np
-from pydantic import (BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator,
-                      model_validator)
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
 
 from .. import __version__
 from ..config.parameters import Parameters
@@ -93,16 +101,16 @@ class ColumnMap(_Strict):
     """Contract column -> source column and unit; ``variable``: the MATLAB struct holding them."""
 
     time: Column
-    command: Optional[Column] = None
+    command: Column | None = None
     position: Column
-    speed: Optional[Column] = None
-    current: Optional[Column] = None
-    current_a: Optional[Column] = None
-    current_b: Optional[Column] = None
-    current_c: Optional[Column] = None
-    torque: Optional[Column] = None
-    motor_angle: Optional[Column] = None
-    variable: Optional[str] = Field(None, min_length=1, description="MATLAB files: the struct "
+    speed: Column | None = None
+    current: Column | None = None
+    current_a: Column | None = None
+    current_b: Column | None = None
+    current_c: Column | None = None
+    torque: Column | None = None
+    motor_angle: Column | None = None
+    variable: str | None = Field(None, min_length=1, description="MATLAB files: the struct "
                                     "whose fields are the columns (omitted: top-level variables)")
     csv: CsvOptions = Field(CsvOptions(), description="text files: the dialect, where detection "
                                                       "is not enough")
@@ -112,7 +120,7 @@ class ColumnMap(_Strict):
     def _unit_allowed(cls, value: Column | None, info: ValidationInfo):
         if value is None:
             return value
-        allowed = UNITS[KIND[info.field_name]]
+        allowed = UNITS[KIND[str(info.field_name)]]
         if value.unit not in allowed:
             raise ValueError(f"unit '{value.unit}' is not allowed for {info.field_name} "
                              f"(allowed: {', '.join(allowed)})")
@@ -632,6 +640,7 @@ def read_recording(path: str | Path, columns: ColumnMap, params: Parameters,
     out["time"] = time - t0
     command_note = "recorded"
     if "command" not in out:
+        assert command_of is not None  # refused above without one
         out["command"], command_note = command_of(out["time"], out["position"])
     if "speed" in out:
         speed = {"source": "recorded", "note": "recorded"}

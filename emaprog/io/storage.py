@@ -1,4 +1,4 @@
-"""Trace <-> Parquet, with per-column units and the ``emaprog`` provenance JSON (SPEC 4)."""
+"""Trace <-> Parquet, with per-column units and the ``emaprog`` provenance JSON (docs/reference.md, Traces)."""
 
 from __future__ import annotations
 
@@ -80,13 +80,13 @@ def _require_columns(names, source: str | Path) -> None:
     missing = [c for c in REQUIRED if c not in names]
     if missing:
         raise InputError(source, f"missing column(s) {', '.join(missing)}; a trace needs "
-                         f"{', '.join(REQUIRED)} (SPEC 4)")
+                         f"{', '.join(REQUIRED)} (docs/reference.md, Traces)")
 
 
 def check_columns(raw: dict[str, Any], source: str | Path) -> dict[str, np.ndarray]:
     """The contract columns of a trace, checked; any problem is an :class:`InputError`.
 
-    The SPEC 4 required columns present, numeric and finite, at least 10 samples,
+    The required trace columns (docs/reference.md, Traces) present, numeric and finite, at least 10 samples,
     strictly increasing and uniformly spaced time. Foreign extra columns are
     ignored, never guessed at.
     """
@@ -146,7 +146,7 @@ def check_time(t: np.ndarray, source: str | Path, key: str = "time") -> None:
 def read_trace(path: str | Path) -> Trace:
     """Read and validate a trace; any problem is an :class:`InputError`.
 
-    Checks: a readable Parquet file, the SPEC 4 required columns, float64
+    Checks: a readable Parquet file, the required trace columns (docs/reference.md, Traces), float64
     (or losslessly castable numeric) values, all finite, at least 10 samples,
     strictly increasing and uniformly spaced time. A trace without ``emaprog``
     metadata (a rig recording) is valid.
@@ -184,7 +184,7 @@ def read_trace(path: str | Path) -> Trace:
     return Trace(columns, metadata)
 
 
-def frame_of(trace: Trace) -> "pd.DataFrame":
+def frame_of(trace: Trace) -> pd.DataFrame:
     """A trace as a DataFrame: ``attrs["units"]`` per column, ``attrs["emaprog"]`` provenance."""
     import pandas as pd
 
@@ -194,7 +194,7 @@ def frame_of(trace: Trace) -> "pd.DataFrame":
     return frame
 
 
-def trace_of(frame: "pd.DataFrame", source: str | Path = "trace") -> Trace:
+def trace_of(frame: pd.DataFrame, source: str | Path = "trace") -> Trace:
     """A DataFrame (from :func:`frame_of`, or a recording with the contract columns) as a Trace.
 
     Checked like a file (:func:`check_columns`); provenance from ``attrs["emaprog"]``.
@@ -238,7 +238,7 @@ def writable_output(path: str | Path, kind: str, force: bool = False,
         raise InputError(path, "is an existing file; give a folder to write the results in",
                          "--output")
     if not force and protected:
-        if protected is True:
+        if isinstance(protected, bool):
             existing = [path] if path.is_file() else []
         else:
             existing = [path / name for name in protected if (path / name).exists()]

@@ -11,7 +11,7 @@ Angle conventions (shared with the Monitor Model, see ``monitor.py``):
   which is exactly the paper's Eq. 4 numbering ``s6 mod 3``
   (0: B,C active; 1: C,A; 2: A,B).
 
-Fault laws (SPEC 1), per phase ``x``:
+Fault laws (docs/reference.md, The models), per phase ``x``:
 
 * phase short circuit, working fraction ``N_x = 1 - shorted_x``:
   ``R_x = N_x R``, ``L_x = N_x^2 L``, ``k_x proportional to N_x``;

@@ -4,7 +4,7 @@ The equivalent branch is the active phase pair in series: ``R_eq = 2 R``,
 ``L_eq = 2 L``, torque gain = back-EMF gain ``G = 2 k_e`` (N m/A = V s/rad),
 driven by an ideal current regulator whose voltage saturates at +/-Vdc like
 the Reference Model's H-bridge. Electrical faults enter through modulating
-functions of the rotor angle (SPEC 1), using the angle conventions and sector
+functions of the rotor angle (docs/reference.md, The models), using the angle conventions and sector
 tables of :mod:`emaprog.kernels.bldc`, so both models agree on where each
 phase is active.
 
@@ -15,7 +15,7 @@ the single-phase equivalent keeps, because it carries the short circuit's
 signature: the outgoing current adds ``|i_out|/2`` to the equivalent current
 and decays at a rate set by that phase's ``L_x = N_x^2 L`` and back-EMF, so a
 shorted phase commutes faster than the others. Without it the Monitor's PSC
-signature errs by 0.25-0.30 against the Reference (SPEC 1's e_sig); with it
+signature errs by 0.25-0.30 against the Reference (the signature error e_sig, docs/reference.md, The models); with it
 0.07-0.11, and the healthy Monitor needs no empirical commutation loss.
 """
 
@@ -27,13 +27,25 @@ import numpy as np
 from numba import njit, prange
 
 from .bldc import (
-    IDLE_PHASE, NEGATIVE_PHASE, PHASE_OFFSET, POSITIVE_PHASE, TWO_PI, equivalent_current, sector,
+    IDLE_PHASE,
+    NEGATIVE_PHASE,
+    PHASE_OFFSET,
+    POSITIVE_PHASE,
+    TWO_PI,
+    equivalent_current,
+    sector,
     trapezoid,
 )
 from .control import clip, sample_and_control
 from .mechanics import mechanics_step
 from .structs import (
-    UNIT_COLUMNS, Drive, ElectricalParams, MechanicalParams, MonitorFaults, MonitorOutputs, Plant,
+    UNIT_COLUMNS,
+    Drive,
+    ElectricalParams,
+    MechanicalParams,
+    MonitorFaults,
+    MonitorOutputs,
+    Plant,
 )
 
 (U_MOTOR_INERTIA, U_SURFACE_INERTIA, U_MOTOR_VISCOUS, U_STATIC_FRICTION, U_DYNAMIC_FRICTION,

@@ -6,8 +6,15 @@ import numpy as np
 from numba import njit
 
 from .bldc import (
-    IDLE_PHASE, NEGATIVE_PHASE, POSITIVE_PHASE, PHASE_OFFSET, equivalent_current,
-    phase_coefficient, sector, trapezoid, winding_step,
+    IDLE_PHASE,
+    NEGATIVE_PHASE,
+    PHASE_OFFSET,
+    POSITIVE_PHASE,
+    equivalent_current,
+    phase_coefficient,
+    sector,
+    trapezoid,
+    winding_step,
 )
 from .control import quantize, sample_and_control
 from .mechanics import mechanics_step

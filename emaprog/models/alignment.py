@@ -21,9 +21,9 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .. import signals
 from ..config.parameters import Parameters
 from ..config.scenario import Scenario
-from .. import signals
 from ..faults import healthy_values, monitor_form
 from . import monitor
 from .common import inputs

@@ -8,9 +8,9 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import __version__, signals
-from ..kernels.structs import Drive
 from ..config.parameters import Parameters
 from ..config.scenario import Scenario
+from ..kernels.structs import Drive
 
 
 class Inputs(NamedTuple):
@@ -120,7 +120,7 @@ def inputs_from_trace(trace, params: Parameters, load_spec=None) -> Inputs:
 class Instants(NamedTuple):
     """Where recorded samples fall on the controller grid: ``t = (index + fraction) / rate``."""
 
-    index: np.ndarray  # (n_rec,) int64, grid sample at or before each recorded instant
+    index: np.ndarray  # type: ignore[assignment]  # (n_rec,) int64, grid sample at or before each recorded instant (shadows tuple.index)
     fraction: np.ndarray  # (n_rec,) float64 in [0, 1): the way to the next grid sample
 
     def sample(self, x: np.ndarray) -> np.ndarray:
@@ -147,7 +147,7 @@ def recorded_instants(trace_time: np.ndarray, grid: np.ndarray, shift: float = 0
 
 
 def provenance(model: str, scenario: Scenario, params: Parameters, **extra) -> dict:
-    """The ``emaprog`` metadata of a trace (SPEC 4)."""
+    """The ``emaprog`` metadata of a trace (docs/reference.md, Traces)."""
     return {
         "emaprog_version": __version__,
         "model": model,

@@ -4,16 +4,19 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..config.parameters import Parameters
+from ..config.scenario import Scenario
 from ..faults import MonitorFaults, flatten, monitor_form
+from ..io.storage import Trace
 from ..kernels.monitor import (
-    ECCENTRICITY_PAIR, ECCENTRICITY_PAPER, SHORT_CIRCUIT_AVERAGED, SHORT_CIRCUIT_MODULATED,
+    ECCENTRICITY_PAIR,
+    ECCENTRICITY_PAPER,
+    SHORT_CIRCUIT_AVERAGED,
+    SHORT_CIRCUIT_MODULATED,
     simulate_monitor,
 )
 from ..kernels.structs import MonitorOptions, MonitorOutputs, Plant
 from ..numerics import DEFAULT, Numerics
-from ..config.parameters import Parameters
-from ..config.scenario import Scenario
-from ..io.storage import Trace
 from .common import Inputs, inputs, provenance
 
 SHORT_CIRCUIT_MODELS = {"modulated": SHORT_CIRCUIT_MODULATED, "averaged": SHORT_CIRCUIT_AVERAGED}

@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 
 from .. import progress
+from ..config.parameters import Parameters
+from ..config.scenario import Scenario
 from ..faults import FaultParams, flatten, reference_form
+from ..io.storage import Trace
 from ..kernels.reference import ENERGY_SLOTS, initial_state, simulate_reference
 from ..kernels.structs import ReferenceOutputs, SensorNoise
 from ..numerics import DEFAULT, Numerics
-from ..config.parameters import Parameters
-from ..config.scenario import Scenario
-from ..io.storage import Trace
 from .common import Inputs, inputs, provenance
 
 

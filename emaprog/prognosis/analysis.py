@@ -7,10 +7,10 @@ import math
 import numpy as np
 
 from .. import __version__
-from ..faults import FAULT_NAMES, FAULTS
-from .history import HistoryTable
 from ..config.parameters import Parameters
+from ..faults import FAULT_NAMES, FAULTS
 from .fit import BOOTSTRAP, MIN_POINTS, alpha_lambda, predict, prognostic_horizon, relative_accuracy
+from .history import HistoryTable
 
 ALPHA = 0.2  # [-] half width of the alpha-lambda cone around the true RUL
 

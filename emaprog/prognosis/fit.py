@@ -78,7 +78,7 @@ def _fit_one(law: str, usage: np.ndarray, severity: np.ndarray) -> tuple[float, 
 GAUSS_NEWTON_STEPS = 12  # from the fit of the data every replicate is a small step away
 
 
-def _refit_replicates(best: "TrendFit", usage: np.ndarray,
+def _refit_replicates(best: TrendFit, usage: np.ndarray,
                       replicates: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Least-squares law parameters of every bootstrap replicate (rows), all at once.
 
@@ -131,6 +131,7 @@ def fit(usage: np.ndarray, severity: np.ndarray, law: str = "auto") -> TrendFit:
         aic = n * math.log(max(rss / n, 1e-300)) + 4.0
         if best is None or aic < best.aic:
             best = TrendFit(name, a, b, sigma, aic)
+    assert best is not None  # the laws are tried in turn: the first one always fits
     return best
 
 

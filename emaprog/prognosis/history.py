@@ -5,7 +5,7 @@ Three sources, one shape (:class:`HistoryTable`):
 * a Parquet table, one row per inspection, sorted by usage: ``actuator``
   (text), ``usage`` [h], and the estimated ``friction``, ``backlash``,
   ``short_circuit_a``, ``short_circuit_b``, ``short_circuit_c``,
-  ``eccentricity_zeta`` (SPEC 6 quantity names);
+  ``eccentricity_zeta`` (the catalogue's quantity names);
 * a folder of ``report.json`` files written by
   ``emaprog identify TRACE --actuator ID --usage HOURS`` (searched recursively);
 * a synthetic history YAML (:class:`~emaprog.config.scenario.History`): the growth
@@ -20,20 +20,26 @@ import hashlib
 import json
 import math
 from pathlib import Path
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
 from ..campaign import cases as campaigns
-from ..errors import InputError
-from ..identification.confidence import Z90, severity_interval
-from ..faults import (
-    CATALOGUE, FAULT_NAMES, FAULTS, QUANTITIES, flat_from_nested, healthy_values, severity,
-)
 from ..config.parameters import Parameters
 from ..config.scenario import Faults, History, Scenario
+from ..errors import InputError
+from ..faults import (
+    CATALOGUE,
+    FAULT_NAMES,
+    FAULTS,
+    QUANTITIES,
+    flat_from_nested,
+    healthy_values,
+    severity,
+)
+from ..identification.confidence import Z90, severity_interval
 
 #: The estimated quantities a history table holds: every fault quantity but the angles.
 TABLE_COLUMNS = tuple(name for name, q in QUANTITIES.items() if not q.circular)
@@ -54,9 +60,10 @@ class HistoryTable(NamedTuple):
 
 def severity_sigma(fault: str, interval: dict[str, tuple[float, float] | None]) -> float:
     """A fault's severity standard deviation from its quantities' 90 % intervals (NaN: none)."""
-    if any(interval.get(q.name) is None for q in FAULTS[fault].magnitudes):
+    known = {q: v for q, v in interval.items() if v is not None}
+    if any(q.name not in known for q in FAULTS[fault].magnitudes):
         return math.nan
-    low, high = severity_interval(fault, interval)
+    low, high = severity_interval(fault, known)
     return (high - low) / (2.0 * Z90)
 
 
@@ -150,12 +157,12 @@ def read_reports(folder: str | Path) -> HistoryTable:
         raise InputError(folder, f"mixes actuators ({', '.join(actuators[:5])}); a history is one "
                          "actuator's reports", "inspection.actuator")
     entries.sort(key=lambda e: e[0])
-    usage = np.array([e[0] for e in entries])
+    usages = np.array([e[0] for e in entries])
     repeated = [str(e[3]) for a, e in zip(entries, entries[1:]) if e[0] == a[0]]
     if repeated:
         raise InputError(repeated[0], "repeats the usage of another report", "inspection.usage")
-    _check_usage(usage, folder, "inspection.usage")
-    return HistoryTable(actuators[0], str(folder), usage, _severities([e[2] for e in entries]),
+    _check_usage(usages, folder, "inspection.usage")
+    return HistoryTable(actuators[0], str(folder), usages, _severities([e[2] for e in entries]),
                         None, None, _sigmas([e[4] for e in entries]))
 
 
@@ -189,7 +196,7 @@ def _severity_at(law: Degradation, usage: float) -> float:
 
 def true_faults(history: History, laws: dict[str, Degradation], usage: float) -> Faults:
     """The actuator's faults at ``usage`` [h] (capped to the fault ranges)."""
-    value = {}
+    value: dict[str, Any] = {}
     for fault in CATALOGUE:
         law = laws.get(fault.name)
         level = _severity_at(law, usage) if law is not None else 0.0

@@ -29,7 +29,7 @@ from emaprog.models import reference
 from emaprog.models.common import Inputs, inputs
 
 HERE = Path(__file__).resolve().parent
-#: The unit: factors on the shipped set's values (within SPEC 11's build tolerances).
+#: The unit: factors on the shipped set's values (within the build tolerances (docs/reference.md, Campaign YAML)).
 UNIT = {"motor_inertia": 1.06, "surface_inertia": 0.95, "motor_viscous": 1.2,
         "static_friction": 1.08, "dynamic_friction": 1.05, "phase_resistance": 1.05,
         "back_emf_constant": 0.98, "phase_inductance": 1.04, "transmission_stiffness": 0.9}
