@@ -52,8 +52,11 @@ def main(path: Path = ROOT / "docs" / "agreement.png") -> Path:
         ("Fig. 10 faults", reference_form(fig10), opts),
         ("PSC A 0.3, modulated law", psc, opts),
         ("PSC A 0.3, averaged law", psc, averaged),
-        ("PSC A 0.3, modulated law, no commutation transients", psc,
-         opts._replace(commutation=False)),
+        (
+            "PSC A 0.3, modulated law, no commutation transients",
+            psc,
+            opts._replace(commutation=False),
+        ),
     ]
     fig, axes = plt.subplots(len(cases), 1, figsize=(10, 2.6 * len(cases)), sharex=True)
     for ax, (title, faults, mon_opts) in zip(axes, cases):

@@ -27,9 +27,18 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _output import finish, parser  # noqa: E402
 
 Z90 = 1.6448536269514722
-PARAMETERS = ("motor_inertia", "surface_inertia", "motor_viscous", "dynamic_friction",
-              "static_friction", "phase_resistance", "back_emf_constant", "phase_inductance",
-              "transmission_stiffness", "hinge_moment")
+PARAMETERS = (
+    "motor_inertia",
+    "surface_inertia",
+    "motor_viscous",
+    "dynamic_friction",
+    "static_friction",
+    "phase_resistance",
+    "back_emf_constant",
+    "phase_inductance",
+    "transmission_stiffness",
+    "hinge_moment",
+)
 
 
 def pairs(frame: pd.DataFrame, name: str) -> tuple[np.ndarray, np.ndarray]:
@@ -52,19 +61,27 @@ def calibrate(frame: pd.DataFrame) -> dict:
         top = 30.0 if name == "hinge_moment" else 0.3
         grid = np.linspace(0.0, top, 3001)
         floor = next((float(f) for f in grid if coverage(err, se, f) >= 0.90), top)
-        out[name] = {"n": int(err.size), "coverage_linearised": coverage(err, se, 0.0),
-                     "floor": floor, "coverage": coverage(err, se, floor)}
+        out[name] = {
+            "n": int(err.size),
+            "coverage_linearised": coverage(err, se, 0.0),
+            "floor": floor,
+            "coverage": coverage(err, se, floor),
+        }
     return out
 
 
 def table(result: dict) -> str:
-    lines = ["| parameter | n | coverage, linearised | floor | coverage | validation |",
-             "|---|---|---|---|---|---|"]
+    lines = [
+        "| parameter | n | coverage, linearised | floor | coverage | validation |",
+        "|---|---|---|---|---|---|",
+    ]
     for name, r in result["parameters"].items():
         val = ", ".join(f"{v[name]:.1%}" for v in result["validation"] if name in v)
         unit = " N m" if name == "hinge_moment" else ""
-        lines.append(f"| {name} | {r['n']} | {r['coverage_linearised']:.1%} | "
-                     f"{r['floor']:.4g}{unit} | {r['coverage']:.1%} | {val or '—'} |")
+        lines.append(
+            f"| {name} | {r['n']} | {r['coverage_linearised']:.1%} | "
+            f"{r['floor']:.4g}{unit} | {r['coverage']:.1%} | {val or '—'} |"
+        )
     return "\n".join(lines)
 
 
@@ -78,8 +95,9 @@ def main() -> int:
     validation = []
     for folder in ns.validate:
         other = pd.read_parquet(folder / "cases")
-        validation.append({name: coverage(*pairs(other, name), r["floor"])
-                           for name, r in found.items()})
+        validation.append(
+            {name: coverage(*pairs(other, name), r["floor"]) for name, r in found.items()}
+        )
     return finish({"parameters": found, "validation": validation}, table, ns.json)
 
 

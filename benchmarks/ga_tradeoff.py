@@ -36,7 +36,8 @@ def run(population: int, generations: int) -> dict:
     errors = summary["errors"]
     phases = [errors[f"short_circuit_{x}"] for x in "abc"]
     return {
-        "population": population, "generations": generations,
+        "population": population,
+        "generations": generations,
         "friction_within": errors["friction"]["within_tolerance"],
         "backlash_within": errors["backlash"]["within_tolerance"],
         "short_circuit_within": min(p["within_tolerance"] for p in phases),
@@ -48,14 +49,18 @@ def run(population: int, generations: int) -> dict:
 
 
 def table(rows: list[dict]) -> str:
-    head = ("| population x generations | friction | backlash | PSC (worst phase) | zeta | "
-            "PSC p95 | zeta p95 | identify [s] |")
+    head = (
+        "| population x generations | friction | backlash | PSC (worst phase) | zeta | "
+        "PSC p95 | zeta p95 | identify [s] |"
+    )
     lines = [head, "|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        lines.append(f"| {r['population']} x {r['generations']} | {r['friction_within']:.0%} | "
-                     f"{r['backlash_within']:.0%} | {r['short_circuit_within']:.0%} | "
-                     f"{r['zeta_within']:.0%} | {r['short_circuit_p95']:.3f} | "
-                     f"{r['zeta_p95']:.3f} | {r['identify_s']:.1f} |")
+        lines.append(
+            f"| {r['population']} x {r['generations']} | {r['friction_within']:.0%} | "
+            f"{r['backlash_within']:.0%} | {r['short_circuit_within']:.0%} | "
+            f"{r['zeta_within']:.0%} | {r['short_circuit_p95']:.3f} | "
+            f"{r['zeta_p95']:.3f} | {r['identify_s']:.1f} |"
+        )
     return "\n".join(lines)
 
 

@@ -28,8 +28,14 @@ from emaprog.io.storage import frame_of  # noqa: E402
 from emaprog.models import reference  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
-TOLERANCE = {"friction": 0.05, "backlash": 5e-5, "short_circuit_a": 0.03, "short_circuit_b": 0.03,
-             "short_circuit_c": 0.03, "eccentricity_zeta": 0.05}
+TOLERANCE = {
+    "friction": 0.05,
+    "backlash": 5e-5,
+    "short_circuit_a": 0.03,
+    "short_circuit_b": 0.03,
+    "short_circuit_c": 0.03,
+    "eccentricity_zeta": 0.05,
+}
 
 
 def noisy_set(factor: float):
@@ -43,8 +49,11 @@ def one(faulty: bool, duration: float, amplitude: float, noise: float) -> dict:
     base = emaprog.load_scenario(ROOT / "configs" / "fig10-multiple-faults.yaml")
     data = base.model_dump(mode="json")
     data.update(duration=duration, name="edge")
-    data["command"] = ({**data["command"], "amplitude": amplitude} if amplitude > 0
-                       else {"kind": "constant", "offset": 0.0})
+    data["command"] = (
+        {**data["command"], "amplitude": amplitude}
+        if amplitude > 0
+        else {"kind": "constant", "offset": 0.0}
+    )
     if not faulty:
         data["faults"] = {}
     scenario = base.model_validate(data)
@@ -52,34 +61,53 @@ def one(faulty: bool, duration: float, amplitude: float, noise: float) -> dict:
     # the noisier rig's trace, identified with the shipped set (the Monitor has no noise)
     report = emaprog.identify(frame_of(reference.simulate(scenario, params)))
     why = report.data["confidence"]["inconclusive"]
-    gated = any(("too short" in w or "does not excite" in w or "mostly noise" in w)
-                for w in why.values())
+    gated = any(
+        ("too short" in w or "does not excite" in w or "mostly noise" in w) for w in why.values()
+    )
     truth = flatten(scenario.faults)
-    est = {"friction": report.estimate["friction"], "backlash": report.estimate["backlash"],
-           "eccentricity_zeta": report.estimate["eccentricity"]["zeta"],
-           **{f"short_circuit_{p}": v for p, v in report.estimate["short_circuit"].items()}}
+    est = {
+        "friction": report.estimate["friction"],
+        "backlash": report.estimate["backlash"],
+        "eccentricity_zeta": report.estimate["eccentricity"]["zeta"],
+        **{f"short_circuit_{p}": v for p, v in report.estimate["short_circuit"].items()},
+    }
 
     def error(q: str) -> float:
         return abs(est[q] / truth[q] - 1.0) if q == "friction" else abs(est[q] - truth[q])
 
     within = all(error(q) <= t for q, t in TOLERANCE.items())
     limits = params.spec.health
-    false_alarm = any(report.health.get(f) in ("incipient", "degraded")
-                      and severity(f, truth) < getattr(limits, f).incipient for f in report.health)
-    return {"faulty": faulty, "duration": duration, "amplitude": amplitude, "noise": noise,
-            "gated": gated, "inconclusive": sorted(why), "ratio": report.data["confidence"]["noise_floor"]["ratio"],
-            "floor": report.data["confidence"]["noise_floor"]["fitness"],
-            "within": bool(within), "false_alarm": bool(false_alarm)}
+    false_alarm = any(
+        report.health.get(f) in ("incipient", "degraded")
+        and severity(f, truth) < getattr(limits, f).incipient
+        for f in report.health
+    )
+    return {
+        "faulty": faulty,
+        "duration": duration,
+        "amplitude": amplitude,
+        "noise": noise,
+        "gated": gated,
+        "inconclusive": sorted(why),
+        "ratio": report.data["confidence"]["noise_floor"]["ratio"],
+        "floor": report.data["confidence"]["noise_floor"]["fitness"],
+        "within": bool(within),
+        "false_alarm": bool(false_alarm),
+    }
 
 
 def table(result: list[dict]) -> str:
-    lines = ["| unit | duration [s] | amplitude [rad] | noise | gate | ratio | floor | within tolerance | false alarm |",
-             "|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| unit | duration [s] | amplitude [rad] | noise | gate | ratio | floor | within tolerance | false alarm |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     for r in result:
-        lines.append(f"| {'Fig. 10' if r['faulty'] else 'healthy'} | {r['duration']:g} | "
-                     f"{r['amplitude']:g} | x{r['noise']:g} | {'inconclusive' if r['gated'] else 'pass'} | "
-                     f"{r['ratio']:.3g} | {r['floor']:.2g} | {'yes' if r['within'] else 'no'} | "
-                     f"{'YES' if r['false_alarm'] else 'no'} |")
+        lines.append(
+            f"| {'Fig. 10' if r['faulty'] else 'healthy'} | {r['duration']:g} | "
+            f"{r['amplitude']:g} | x{r['noise']:g} | {'inconclusive' if r['gated'] else 'pass'} | "
+            f"{r['ratio']:.3g} | {r['floor']:.2g} | {'yes' if r['within'] else 'no'} | "
+            f"{'YES' if r['false_alarm'] else 'no'} |"
+        )
     return "\n".join(lines)
 
 

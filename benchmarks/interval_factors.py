@@ -81,21 +81,34 @@ class Cases:
     A nuisance (hinge moment, resistance factor) counts where it was estimated, its
     deviation from its default; its interval is plain ``estimate +- 1.645 se``."""
 
-    def __init__(self, frame: pd.DataFrame, name: str, incipient: dict[str, float], twin: bool,
-                 ratio_ref: float = math.inf):
+    def __init__(
+        self,
+        frame: pd.DataFrame,
+        name: str,
+        incipient: dict[str, float],
+        twin: bool,
+        ratio_ref: float = math.inf,
+    ):
         q = QUANTITIES.get(name)
         healthy = NUISANCE_DEFAULTS[name] if q is None else q.healthy
         est = frame[f"est_{name}"].to_numpy(float)
         true = frame[f"true_{name}"].to_numpy(float)
         if f"sigma_{name}" not in frame:
-            raise SystemExit(f"no sigma_{name} column: a campaign from before the linearised "
-                             "standard errors were stored; run it again")
+            raise SystemExit(
+                f"no sigma_{name} column: a campaign from before the linearised "
+                "standard errors were stored; run it again"
+            )
         sigma = frame[f"sigma_{name}"].to_numpy(float)
         load = fault_load({n: frame[f"est_{n}"].to_numpy(float) for n in QUANTITIES}, incipient)
         if q is not None and q.circular:
             fault = next(f for f in CATALOGUE if name in {x.name for x in f.quantities})
-            severity = np.max([np.abs(frame[f"true_{m.name}"].to_numpy(float) - m.healthy)
-                               for m in fault.magnitudes], axis=0)
+            severity = np.max(
+                [
+                    np.abs(frame[f"true_{m.name}"].to_numpy(float) - m.healthy)
+                    for m in fault.magnitudes
+                ],
+                axis=0,
+            )
             keep = severity >= incipient[fault.name]
             error = np.abs(np.remainder(true - est + math.pi, 2.0 * math.pi) - math.pi)
             deviation = np.zeros_like(est)
@@ -106,18 +119,26 @@ class Cases:
         self.nuisance, self.circular = q is None, q is not None and q.circular
         one_group = self.nuisance or self.circular
         faulty = np.ones(len(frame), bool) if one_group else np.abs(true - healthy) > 0.0
-        ratio = frame["floor_ratio"].to_numpy(float) if "floor_ratio" in frame else np.ones(len(frame))
+        ratio = (
+            frame["floor_ratio"].to_numpy(float) if "floor_ratio" in frame else np.ones(len(frame))
+        )
         self.widening = np.maximum(1.0, np.sqrt(ratio / ratio_ref))[keep]
         self.error, self.sigma, self.deviation = error[keep], sigma[keep], deviation[keep]
         self.load = load[keep]
         self.name, self.estimate, self.true = name, est[keep], true[keep]
         self.faulty = faulty[keep]
-        self.scale = (NUISANCE_SCALE[name] if q is None
-                      else PHASE_SCALE if q.tolerance is None else q.tolerance)
+        self.scale = (
+            NUISANCE_SCALE[name]
+            if q is None
+            else PHASE_SCALE
+            if q.tolerance is None
+            else q.tolerance
+        )
 
     def se(self, factor: float, share: float, load: float) -> np.ndarray:
-        return self.widening * np.sqrt((factor * self.sigma) ** 2 + (share * self.deviation) ** 2
-                                       + (load * self.load) ** 2)
+        return self.widening * np.sqrt(
+            (factor * self.sigma) ** 2 + (share * self.deviation) ** 2 + (load * self.load) ** 2
+        )
 
     def covered(self, factor: float, share: float, load: float = 0.0) -> np.ndarray:
         """Whether each case's 90 % interval under the law holds its truth: the interval is
@@ -163,8 +184,9 @@ def fit(cases: Cases, factors=FACTORS, shares=SHARES, loads=None) -> tuple[float
             for factor in factors:
                 covered = cases.covered(factor, share, load)
                 loss = sum((covered[g].mean() - TARGET) ** 2 for g in groups if g.any())
-                loss += LOAD_WEIGHT * sum((covered[g].mean() - TARGET) ** 2
-                                          for g in quarters if g.any())
+                loss += LOAD_WEIGHT * sum(
+                    (covered[g].mean() - TARGET) ** 2 for g in quarters if g.any()
+                )
                 key = (round(loss, 6), float(np.median(cases.se(factor, share, load))))
                 if key < best_key:
                     best, best_key = (float(factor), float(share), float(load)), key
@@ -192,14 +214,18 @@ def calibrate(directories: list[Path]) -> list[dict]:
         # the ratio the laws are calibrated under: the 95th percentile of the first results
         # directory of this basis (the calibration campaign; the others are checked)
         ratio_ref = float(np.quantile(next(iter(chosen.values()))["floor_ratio"], 0.95))
-        estimated = [n for n in NUISANCE_DEFAULTS
-                     if any(f"sigma_{n}" in f and f[f"sigma_{n}"].notna().any()
-                            for f in chosen.values())]
+        estimated = [
+            n
+            for n in NUISANCE_DEFAULTS
+            if any(f"sigma_{n}" in f and f[f"sigma_{n}"].notna().any() for f in chosen.values())
+        ]
         for name in [*QUANTITIES, *estimated] if chosen else ():
             per = {d: Cases(f, name, incipient, twin, ratio_ref) for d, f in chosen.items()}
             per = {d: c for d, c in per.items() if c.error.size}
-            law = fit(pooled(list(per.values())),
-                      NUISANCE_FACTORS if name in NUISANCE_DEFAULTS else FACTORS)
+            law = fit(
+                pooled(list(per.values())),
+                NUISANCE_FACTORS if name in NUISANCE_DEFAULTS else FACTORS,
+            )
             rows.append({**_row(name, basis, law, per), "ratio_ref": ratio_ref})
     return rows
 
@@ -212,35 +238,44 @@ def _basis(frame: pd.DataFrame) -> pd.Series:
     return frame["twin"].map({True: "twin", False: "unit"})
 
 
-def _row(name: str, basis: str, law: tuple[float, float, float],
-         cases: dict[str, Cases]) -> dict:
+def _row(name: str, basis: str, law: tuple[float, float, float], cases: dict[str, Cases]) -> dict:
     today = quantity_error(name, basis)
-    row = {"basis": basis, "quantity": name,
-           "today": list(today), "proposed": list(law), "campaigns": {}}
+    row = {
+        "basis": basis,
+        "quantity": name,
+        "today": list(today),
+        "proposed": list(law),
+        "campaigns": {},
+    }
     for d, c in cases.items():
         now, new = c.covered(*today), c.covered(*law)
         row["campaigns"][d] = {
-            "n": int(c.error.size), "coverage": float(now.mean()) if now.size else None,
+            "n": int(c.error.size),
+            "coverage": float(now.mean()) if now.size else None,
             "proposed_coverage": float(new.mean()) if new.size else None,
             "proposed_wilson90": wilson(int(new.sum()), int(new.size)),
-            "proposed_healthy_faulty": [float(new[g].mean()) if g.any() else None
-                                        for g in (~c.faulty, c.faulty)],
+            "proposed_healthy_faulty": [
+                float(new[g].mean()) if g.any() else None for g in (~c.faulty, c.faulty)
+            ],
         }
     return row
 
 
 def table(rows: list[dict]) -> str:
-    lines = ["| basis | quantity | factor / share / load today | coverage today | proposed | coverage "
-             "with it (90 % Wilson; on healthy / faulty truths) |",
-             "|---|---|---|---|---|---|"]
+    lines = [
+        "| basis | quantity | factor / share / load today | coverage today | proposed | coverage "
+        "with it (90 % Wilson; on healthy / faulty truths) |",
+        "|---|---|---|---|---|---|",
+    ]
     for r in rows:
         now = ", ".join(f"{Path(d).name} {c['coverage']:.0%}" for d, c in r["campaigns"].items())
         new = ", ".join(
             f"{Path(d).name} {c['proposed_coverage']:.0%} ({c['proposed_wilson90'][0]:.0%}-"
             f"{c['proposed_wilson90'][1]:.0%}, n {c['n']}; "
-            + " / ".join("-" if t is None else f"{t:.0%}"
-                         for t in c["proposed_healthy_faulty"]) + ")"
-            for d, c in r["campaigns"].items())
+            + " / ".join("-" if t is None else f"{t:.0%}" for t in c["proposed_healthy_faulty"])
+            + ")"
+            for d, c in r["campaigns"].items()
+        )
         today, proposed = (" / ".join(f"{x:.3g}" for x in r[k]) for k in ("today", "proposed"))
         lines.append(f"| {r['basis']} | {r['quantity']} | {today} | {now} | {proposed} | {new} |")
     return "\n".join(lines)

@@ -37,17 +37,22 @@ def measure(repeat: int) -> list[dict]:
     cases = {
         "healthy, no commutation transients": (healthy, options._replace(commutation=False)),
         "healthy": (healthy, options),
-        "friction x1.8 and backlash 4e-4 rad": ({**healthy, "friction": 1.8, "backlash": 4e-4},
-                                                options),
+        "friction x1.8 and backlash 4e-4 rad": (
+            {**healthy, "friction": 1.8, "backlash": 4e-4},
+            options,
+        ),
         "short circuit A 0.2": ({**healthy, "short_circuit_a": 0.2}, options),
-        "eccentricity zeta 0.2": ({**healthy, "eccentricity_zeta": 0.2,
-                                   "eccentricity_phase": 1.0}, options),
+        "eccentricity zeta 0.2": (
+            {**healthy, "eccentricity_zeta": 0.2, "eccentricity_phase": 1.0},
+            options,
+        ),
         "Fig. 10 faults": (flatten(scenario.faults), options),
     }
     numba.set_num_threads(1)
     out = np.empty(inp.command.size)
-    plain = median_time(lambda: plain_loop(inp.command, DEFAULT.monitor_substeps, out),
-                        max(repeat, 20))
+    plain = median_time(
+        lambda: plain_loop(inp.command, DEFAULT.monitor_substeps, out), max(repeat, 20)
+    )
     rows = [{"case": "plain single-phase loop (yardstick)", "ms": 1e3 * plain}]
     for name, (values, opts) in cases.items():
         faults = monitor_form(values, gain)
@@ -60,10 +65,14 @@ def measure(repeat: int) -> list[dict]:
 
 
 def table(rows: list[dict]) -> str:
-    lines = ["| run (0.5 s chirp, 20 000 steps, 1 core) | ms | ns a step | in plain loops |",
-             "|---|---|---|---|"]
-    lines += [f"| {r['case']} | {r['ms']:.3f} | {r['ns_per_step']:.0f} | {r['per_plain']:.2f} |"
-              for r in rows]
+    lines = [
+        "| run (0.5 s chirp, 20 000 steps, 1 core) | ms | ns a step | in plain loops |",
+        "|---|---|---|---|",
+    ]
+    lines += [
+        f"| {r['case']} | {r['ms']:.3f} | {r['ns_per_step']:.0f} | {r['per_plain']:.2f} |"
+        for r in rows
+    ]
     return "\n".join(lines)
 
 

@@ -58,20 +58,30 @@ STARTS = 6
 
 def _deap_toolbox(objective: Objective, budget: int, seed: int) -> np.ndarray:
     """emaprog's ``deap`` GA strategy with as many generations as the budget pays for."""
-    options = GAOptions(population=POPULATION, generations=max(1, budget // POPULATION - 1),
-                        strategy="deap")
-    return ga_minimize(objective, objective.dims, options, seed=seed,
-                       initial=objective.healthy_genes()[None]).best
+    options = GAOptions(
+        population=POPULATION, generations=max(1, budget // POPULATION - 1), strategy="deap"
+    )
+    return ga_minimize(
+        objective, objective.dims, options, seed=seed, initial=objective.healthy_genes()[None]
+    ).best
 
 
 def _de(objective: Objective, budget: int, seed: int) -> np.ndarray:
     dims = objective.dims
     popsize = max(1, math.ceil(POPULATION / dims))
     iterations = max(1, budget // (popsize * dims) - 1)
-    result = differential_evolution(lambda x: objective(np.ascontiguousarray(x.T)),
-                                    [(0.0, 1.0)] * dims, popsize=popsize, maxiter=iterations,
-                                    tol=0.0, seed=seed, polish=False, vectorized=True,
-                                    updating="deferred", init="latinhypercube")
+    result = differential_evolution(
+        lambda x: objective(np.ascontiguousarray(x.T)),
+        [(0.0, 1.0)] * dims,
+        popsize=popsize,
+        maxiter=iterations,
+        tol=0.0,
+        seed=seed,
+        polish=False,
+        vectorized=True,
+        updating="deferred",
+        init="latinhypercube",
+    )
     return result.x
 
 
@@ -101,17 +111,20 @@ def _multistart(objective: Objective, budget: int, seed: int) -> np.ndarray:
     starts = (np.argsort(rng.random((STARTS, dims)), axis=0) + rng.random((STARTS, dims))) / STARTS
     best, best_fitness = None, math.inf
     for start in starts:
-        found = local_minimize(lambda x: float(objective(x[None])[0]), start, method="Powell",
-                               bounds=[(0.0, 1.0)] * dims,
-                               options={"maxfev": budget // STARTS, "xtol": 1e-4, "ftol": 1e-8})
+        found = local_minimize(
+            lambda x: float(objective(x[None])[0]),
+            start,
+            method="Powell",
+            bounds=[(0.0, 1.0)] * dims,
+            options={"maxfev": budget // STARTS, "xtol": 1e-4, "ftol": 1e-8},
+        )
         if found.fun < best_fitness:
             best, best_fitness = found.x, float(found.fun)
     return best
 
 
 #: The alternatives, each called with the GA's Monitor runs on the case as its budget.
-OPTIMISERS = {"deap-toolbox": _deap_toolbox, "de": _de, "cma-es": _cma,
-              "multistart": _multistart}
+OPTIMISERS = {"deap-toolbox": _deap_toolbox, "de": _de, "cma-es": _cma, "multistart": _multistart}
 
 
 def run_cases(count: int) -> list[dict]:
@@ -130,24 +143,41 @@ def run_cases(count: int) -> list[dict]:
             if name == "ga":  # first: its Monitor runs are every optimiser's budget
                 population, generations = ga_budget(spec.settings.ga, trace.sample_rate)
                 options = GAOptions(population=population, generations=generations)
-                found = ga_minimize(objective, objective.dims, options, seed=spec.settings.ga.seed,
-                                    circular=objective.circular,
-                                    initial=objective.healthy_genes()[None]).best
+                found = ga_minimize(
+                    objective,
+                    objective.dims,
+                    options,
+                    seed=spec.settings.ga.seed,
+                    circular=objective.circular,
+                    initial=objective.healthy_genes()[None],
+                ).best
                 budget = objective.evaluations
             else:
                 found = OPTIMISERS[name](objective, budget, spec.settings.ga.seed)
             global_runs = objective.evaluations
-            genes, fitness, _ = polish(objective, found, float(objective(found[None])[0]),
-                                       spec.settings.polish)
+            genes, fitness, _ = polish(
+                objective, found, float(objective(found[None])[0]), spec.settings.polish
+            )
             estimate = objective.values(genes)
             errors = verdicts.errors(estimate, truth)
-            rows.append({"optimiser": name, "case": spec.case_id, "fitness": fitness,
-                         "global_runs": global_runs, "runs": objective.evaluations,
-                         "wall_s": time.perf_counter() - start,
-                         **{f"err_{q}": errors[q] for q in QUANTITIES},
-                         **{f"true_{q}": truth[q] for q in QUANTITIES}})
-            print(f"case {spec.case_id} {name:13s} fitness {fitness:.3e} runs "
-                  f"{objective.evaluations} {rows[-1]['wall_s']:.1f} s", file=sys.stderr, flush=True)
+            rows.append(
+                {
+                    "optimiser": name,
+                    "case": spec.case_id,
+                    "fitness": fitness,
+                    "global_runs": global_runs,
+                    "runs": objective.evaluations,
+                    "wall_s": time.perf_counter() - start,
+                    **{f"err_{q}": errors[q] for q in QUANTITIES},
+                    **{f"true_{q}": truth[q] for q in QUANTITIES},
+                }
+            )
+            print(
+                f"case {spec.case_id} {name:13s} fitness {fitness:.3e} runs "
+                f"{objective.evaluations} {rows[-1]['wall_s']:.1f} s",
+                file=sys.stderr,
+                flush=True,
+            )
     return rows
 
 
@@ -179,15 +209,22 @@ def summarise(rows: list[dict]) -> list[dict]:
 
 def table(summary: list[dict]) -> str:
     faults = list(FAULTS)
-    head = ("| optimiser | " + " | ".join(f"{f} within" for f in faults)
-            + " | " + " | ".join(f"{f} p95/tol" for f in faults)
-            + " | Monitor runs | wall [s] |")
+    head = (
+        "| optimiser | "
+        + " | ".join(f"{f} within" for f in faults)
+        + " | "
+        + " | ".join(f"{f} p95/tol" for f in faults)
+        + " | Monitor runs | wall [s] |"
+    )
     lines = [head, "|" + "---|" * (2 * len(faults) + 3)]
     for s in summary:
-        lines.append(f"| {s['optimiser']} | "
-                     + " | ".join(f"{s[f'{f}_within']:.0%}" for f in faults) + " | "
-                     + " | ".join(f"{s[f'{f}_p95_over_tolerance']:.2f}" for f in faults)
-                     + f" | {s['median_runs']:.0f} | {s['median_wall_s']:.1f} |")
+        lines.append(
+            f"| {s['optimiser']} | "
+            + " | ".join(f"{s[f'{f}_within']:.0%}" for f in faults)
+            + " | "
+            + " | ".join(f"{s[f'{f}_p95_over_tolerance']:.2f}" for f in faults)
+            + f" | {s['median_runs']:.0f} | {s['median_wall_s']:.1f} |"
+        )
     return "\n".join(lines)
 
 

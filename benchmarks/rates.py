@@ -22,8 +22,14 @@ from _output import finish, parser  # the sibling module benchmarks/_output.py
 
 ROOT = Path(__file__).resolve().parent.parent
 CAMPAIGN = ROOT / "campaigns" / "regression.yaml"
-VARIANTS = ("20 kHz (interpolated)", "10 kHz", "5 kHz", "2 kHz", "1 kHz",
-            "5 kHz, current from phases")
+VARIANTS = (
+    "20 kHz (interpolated)",
+    "10 kHz",
+    "5 kHz",
+    "2 kHz",
+    "1 kHz",
+    "5 kHz, current from phases",
+)
 TOLERANCE = {"friction": 0.05, "backlash": 5e-5, "short_circuit": 0.03, "zeta": 0.05}
 
 
@@ -39,8 +45,15 @@ def _logged(columns: dict[str, np.ndarray], variant: str) -> dict[str, np.ndarra
         from emaprog.io.recordings import current_demand
 
         magnitude = 0.5 * sum(np.abs(logged[f"current_{x}"]) for x in "abc")
-        sign = np.sign(current_demand(logged["time"], logged["command"], logged["position"],
-                                      logged["speed"], parameters.load("default")))
+        sign = np.sign(
+            current_demand(
+                logged["time"],
+                logged["command"],
+                logged["position"],
+                logged["speed"],
+                parameters.load("default"),
+            )
+        )
         logged["current"] = magnitude * sign
     return logged
 
@@ -65,9 +78,15 @@ def run_case(case_id: int) -> list[dict]:
         frame = pd.DataFrame(_logged(trace.columns, variant))
         frame.attrs["emaprog"] = trace.metadata  # the case's scenario: its settings and truth
         report = emaprog.identify(frame)
-        rows.append({"case": case_id, "variant": variant, "error": report.error,
-                     "elapsed_s": report.elapsed_s,
-                     "true_friction": report.truth["friction"]})
+        rows.append(
+            {
+                "case": case_id,
+                "variant": variant,
+                "error": report.error,
+                "elapsed_s": report.elapsed_s,
+                "true_friction": report.truth["friction"],
+            }
+        )
     return rows
 
 
@@ -79,30 +98,36 @@ def summarize(rows: list[dict]) -> list[dict]:
         backlash = np.array([abs(r["error"]["backlash"]) for r in mine])
         short = np.array([max(abs(v) for v in r["error"]["short_circuit"].values()) for r in mine])
         zeta = np.array([abs(r["error"]["eccentricity"]["zeta"]) for r in mine])
-        out.append({
-            "variant": variant,
-            "friction_within": float(np.mean(friction <= TOLERANCE["friction"])),
-            "backlash_within": float(np.mean(backlash <= TOLERANCE["backlash"])),
-            "short_circuit_within": float(np.mean(short <= TOLERANCE["short_circuit"])),
-            "zeta_within": float(np.mean(zeta <= TOLERANCE["zeta"])),
-            "friction_p95": float(np.percentile(friction, 95)),
-            "backlash_p95": float(np.percentile(backlash, 95)),
-            "short_circuit_p95": float(np.percentile(short, 95)),
-            "zeta_p95": float(np.percentile(zeta, 95)),
-            "identify_s": float(np.median([r["elapsed_s"] for r in mine])),
-        })
+        out.append(
+            {
+                "variant": variant,
+                "friction_within": float(np.mean(friction <= TOLERANCE["friction"])),
+                "backlash_within": float(np.mean(backlash <= TOLERANCE["backlash"])),
+                "short_circuit_within": float(np.mean(short <= TOLERANCE["short_circuit"])),
+                "zeta_within": float(np.mean(zeta <= TOLERANCE["zeta"])),
+                "friction_p95": float(np.percentile(friction, 95)),
+                "backlash_p95": float(np.percentile(backlash, 95)),
+                "short_circuit_p95": float(np.percentile(short, 95)),
+                "zeta_p95": float(np.percentile(zeta, 95)),
+                "identify_s": float(np.median([r["elapsed_s"] for r in mine])),
+            }
+        )
     return out
 
 
 def table(summary: list[dict]) -> str:
-    lines = ["| recording | friction | backlash | PSC (worst phase) | zeta | friction p95 (rel.) | "
-             "backlash p95 [rad] | PSC p95 | zeta p95 | identify [s] |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| recording | friction | backlash | PSC (worst phase) | zeta | friction p95 (rel.) | "
+        "backlash p95 [rad] | PSC p95 | zeta p95 | identify [s] |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for s in summary:
-        lines.append(f"| {s['variant']} | {s['friction_within']:.0%} | {s['backlash_within']:.0%} | "
-                     f"{s['short_circuit_within']:.0%} | {s['zeta_within']:.0%} | "
-                     f"{s['friction_p95']:.3f} | {s['backlash_p95']:.1e} | "
-                     f"{s['short_circuit_p95']:.3f} | {s['zeta_p95']:.3f} | {s['identify_s']:.1f} |")
+        lines.append(
+            f"| {s['variant']} | {s['friction_within']:.0%} | {s['backlash_within']:.0%} | "
+            f"{s['short_circuit_within']:.0%} | {s['zeta_within']:.0%} | "
+            f"{s['friction_p95']:.3f} | {s['backlash_p95']:.1e} | "
+            f"{s['short_circuit_p95']:.3f} | {s['zeta_p95']:.3f} | {s['identify_s']:.1f} |"
+        )
     return "\n".join(lines)
 
 

@@ -35,7 +35,10 @@ FIG10 = ROOT / "configs" / "fig10-multiple-faults.yaml"
 QUICK = ROOT / "campaigns" / "quick.yaml"
 SWEEP_CASES = 8  # cases per timed sweep (4 per core on 2 cores)
 BARS = {  # (bar, "max" or "min"): the figures of merit's for the Reference, the speed issue's (#16) targets
-    "reference_chirp_ms": (200.0, "max"),  # for the rest, stricter than the figures of merit's 2 ms and 10 s
+    "reference_chirp_ms": (
+        200.0,
+        "max",
+    ),  # for the rest, stricter than the figures of merit's 2 ms and 10 s
     "monitor_chirp_ms": (0.9, "max"),
     "identify_s": (2.0, "max"),
     "sweep_cases_per_min": (35.0, "min"),
@@ -105,13 +108,16 @@ def measure(repeat: int) -> dict[str, float]:
     plain_s = median_time(lambda: plain_loop(inp.command, substeps, plain_out), max(repeat, 20))
     figures["plain_loop_ms"] = 1e3 * plain_s
     figures["reference_chirp_ms"] = 1e3 * median_time(
-        lambda: reference.run(params, inp, faults, scenario.seed), repeat)
+        lambda: reference.run(params, inp, faults, scenario.seed), repeat
+    )
     figures["monitor_chirp_ms"] = 1e3 * median_time(
-        lambda: monitor.run(params, inp, healthy), max(repeat, 20))
+        lambda: monitor.run(params, inp, healthy), max(repeat, 20)
+    )
     # what the GA mostly runs: every fault present, eccentricity's trigonometry included
     fig10 = monitor_form(flatten(scenario.faults), params.spec.monitor.eccentricity_gain)
     figures["monitor_faulty_chirp_ms"] = 1e3 * median_time(
-        lambda: monitor.run(params, inp, fig10), max(repeat, 20))
+        lambda: monitor.run(params, inp, fig10), max(repeat, 20)
+    )
     numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
 
     trace = reference.simulate(scenario, params)
@@ -124,10 +130,11 @@ def measure(repeat: int) -> dict[str, float]:
         path = Path(tmp) / "fig10.parquet"
         api.simulate(FIG10, output=path)
         figures["identify_s"] = median_time(
-            lambda: api.identify(path, output=Path(tmp) / "report", force=True),
-            max(1, repeat // 2))
-    figures["sweep_cases_per_min"] = SWEEP_CASES / (median_time(
-        lambda: sweep_once(SWEEP_CASES), max(1, repeat // 2)) / 60.0)
+            lambda: api.identify(path, output=Path(tmp) / "report", force=True), max(1, repeat // 2)
+        )
+    figures["sweep_cases_per_min"] = SWEEP_CASES / (
+        median_time(lambda: sweep_once(SWEEP_CASES), max(1, repeat // 2)) / 60.0
+    )
     figures["cores"] = numba.config.NUMBA_NUM_THREADS
     for name in ("reference_chirp_ms", "monitor_chirp_ms", "monitor_faulty_chirp_ms"):
         figures[name.replace("_ms", "_per_plain")] = figures[name] / figures["plain_loop_ms"]
@@ -150,14 +157,19 @@ def table(figures: dict[str, float]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--json", action="store_true", help="print one JSON object as the last line")
+    parser.add_argument(
+        "--json", action="store_true", help="print one JSON object as the last line"
+    )
     parser.add_argument("--repeat", type=int, default=5, help="runs per figure (median)")
     args = parser.parse_args(argv)
     figures = measure(args.repeat)
     print(table(figures))
     if args.json:
-        print(json.dumps({k: (round(v, 4) if isinstance(v, float) else v)
-                          for k, v in figures.items()}))
+        print(
+            json.dumps(
+                {k: (round(v, 4) if isinstance(v, float) else v) for k, v in figures.items()}
+            )
+        )
     return 0
 
 

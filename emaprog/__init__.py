@@ -37,6 +37,23 @@ from .config.scenario import load_scenario  # noqa: E402
 from .errors import InputError  # noqa: E402
 from .faults import CATALOGUE  # noqa: E402
 
-__all__ = ["CATALOGUE", "Calibration", "Commissioned", "InputError", "Report", "SweepOutcome", "Trend",
-           "__version__", "calibrate", "check", "commission", "convert", "identify", "load_parameters", "load_scenario",
-           "simulate", "sweep", "trend"]
+__all__ = [
+    "CATALOGUE",
+    "Calibration",
+    "Commissioned",
+    "InputError",
+    "Report",
+    "SweepOutcome",
+    "Trend",
+    "__version__",
+    "calibrate",
+    "check",
+    "commission",
+    "convert",
+    "identify",
+    "load_parameters",
+    "load_scenario",
+    "simulate",
+    "sweep",
+    "trend",
+]

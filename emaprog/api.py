@@ -69,26 +69,38 @@ def check(paths: list[str | Path]) -> list[str]:
             continue
         if "time" in data and "position" in data and "duration" not in data:
             mapping = load_column_map(path)
-            lines.append(f"{path}: column map of {len(mapping.mapped())} channels "
-                         f"({', '.join(mapping.mapped())})")
+            lines.append(
+                f"{path}: column map of {len(mapping.mapped())} channels "
+                f"({', '.join(mapping.mapped())})"
+            )
             continue
         kind, loaded = load_any(path)
         if kind == "campaign":
             campaign, base = loaded
-            lines.append(f"{path}: campaign '{campaign.name}', {campaign.cases} cases on "
-                         f"scenario '{base.name}'")
+            lines.append(
+                f"{path}: campaign '{campaign.name}', {campaign.cases} cases on "
+                f"scenario '{base.name}'"
+            )
         elif kind == "history":
             history, base = loaded
-            lines.append(f"{path}: history '{history.name}' of {history.actuator}, "
-                         f"{history.inspections.count} inspections on scenario '{base.name}'")
+            lines.append(
+                f"{path}: history '{history.name}' of {history.actuator}, "
+                f"{history.inspections.count} inspections on scenario '{base.name}'"
+            )
         else:
-            lines.append(f"{path}: scenario '{loaded.name}', {loaded.duration} s "
-                         f"{loaded.command.kind} command, parameters '{loaded.parameters}'")
+            lines.append(
+                f"{path}: scenario '{loaded.name}', {loaded.duration} s "
+                f"{loaded.command.kind} command, parameters '{loaded.parameters}'"
+            )
     return lines
 
 
-def _parameters(name_or_path: str | Path | None, named_by: str | None, relative_to: Path | None,
-                source: str | Path) -> Parameters:
+def _parameters(
+    name_or_path: str | Path | None,
+    named_by: str | None,
+    relative_to: Path | None,
+    source: str | Path,
+) -> Parameters:
     """``--parameters`` when given (it overrides), else the set a scenario or trace names."""
     if name_or_path is not None:
         return parameter_sets.load(str(name_or_path), source="--parameters")
@@ -105,10 +117,16 @@ def _scenario(scenario: str | Path | Scenario | dict) -> tuple[Scenario, Path | 
     return load_scenario(path), path.parent
 
 
-def simulate(scenario: str | Path | Scenario | dict, *, model: Model = "reference",
-             parameters: str | Path | None = None, noise: bool = True,
-             output: str | Path | None = None, plot: bool = False,
-             show_progress: bool = False) -> pd.DataFrame:
+def simulate(
+    scenario: str | Path | Scenario | dict,
+    *,
+    model: Model = "reference",
+    parameters: str | Path | None = None,
+    noise: bool = True,
+    output: str | Path | None = None,
+    plot: bool = False,
+    show_progress: bool = False,
+) -> pd.DataFrame:
     """Simulate a scenario on the Reference (default) or Monitor Model.
 
     Returns the trace as a DataFrame (trace columns (docs/reference.md, Traces); ``attrs["units"]`` per
@@ -155,8 +173,19 @@ class Report:
 
     @classmethod
     def from_data(cls, data: dict[str, Any], folder: Path | None = None) -> Report:
-        keys = ("estimate", "truth", "error", "health", "interval", "fitness", "evaluations",
-                "elapsed_s", "seed", "settings", "emaprog_version")
+        keys = (
+            "estimate",
+            "truth",
+            "error",
+            "health",
+            "interval",
+            "fitness",
+            "evaluations",
+            "elapsed_s",
+            "seed",
+            "settings",
+            "emaprog_version",
+        )
         return cls(**{k: data[k] for k in keys}, data=data, folder=folder)
 
 
@@ -184,8 +213,13 @@ def _trace_set(trace: Trace, embedded: Scenario | None, folder: Path | None) -> 
     return embedded.parameters
 
 
-def convert(recording: str | Path, columns: str | Path, *, parameters: str | Path | None = None,
-            output: str | Path | None = None) -> pd.DataFrame:
+def convert(
+    recording: str | Path,
+    columns: str | Path,
+    *,
+    parameters: str | Path | None = None,
+    output: str | Path | None = None,
+) -> pd.DataFrame:
     """A rig recording (CSV, MATLAB .mat, foreign Parquet) as a contract trace, via a column map.
 
     Returns the trace as a DataFrame (units in ``attrs``); with ``output`` it is
@@ -216,8 +250,9 @@ class Commissioned:
     residual: float
 
 
-def _measured(path: Path, columns: str | Path | None, params: Parameters | None,
-              test: Scenario | None = None) -> Trace:
+def _measured(
+    path: Path, columns: str | Path | None, params: Parameters | None, test: Scenario | None = None
+) -> Trace:
     """A contract trace file, or with a column map a rig recording read through it; ``test``:
     the scenario whose command a recording without a command channel ran (placed in time
     by its response, :mod:`emaprog.models.alignment`)."""
@@ -226,8 +261,9 @@ def _measured(path: Path, columns: str | Path | None, params: Parameters | None,
     if columns is None:
         return read_trace(path)
     if params is None:
-        raise InputError(path, "a recording read through a column map needs a parameter set",
-                         "--parameters")
+        raise InputError(
+            path, "a recording read through a column map needs a parameter set", "--parameters"
+        )
     command_of = None
     if test is not None:
         from .models.alignment import align_command
@@ -235,6 +271,7 @@ def _measured(path: Path, columns: str | Path | None, params: Parameters | None,
         def command_of(time, position):
             found = align_command(test, params, time, position)
             return found.command, found.note
+
     return read_recording(path, load_column_map(columns), params, columns, command_of)
 
 
@@ -255,8 +292,9 @@ def _commissioning_residuals(params: Parameters) -> list:
             out.append(f"commissioning recording {entry.file} not found")
             continue
         if hashlib.sha256(path.read_bytes()).hexdigest() != entry.sha256:
-            out.append(f"commissioning recording {entry.file} changed since commissioning "
-                       "(sha256 differs)")
+            out.append(
+                f"commissioning recording {entry.file} changed since commissioning (sha256 differs)"
+            )
             continue
         try:
             recording = _measured(path, entry.columns, params)
@@ -264,14 +302,19 @@ def _commissioning_residuals(params: Parameters) -> list:
             out.append(f"commissioning recording {entry.file} unreadable: {exc}")
             continue
         rec_inputs = inputs_from_trace(recording, params)
-        out.append(recording_residual(recording, rec_inputs, params, entry.hinge_moment,
-                                      str(path)))
+        out.append(recording_residual(recording, rec_inputs, params, entry.hinge_moment, str(path)))
     return out
 
 
-def commission(recordings: Sequence[str | Path], output: str | Path, *,
-               parameters: str | Path | None = None, columns: str | Path | None = None,
-               scenario: str | Path | None = None, force: bool = False) -> Commissioned:
+def commission(
+    recordings: Sequence[str | Path],
+    output: str | Path,
+    *,
+    parameters: str | Path | None = None,
+    columns: str | Path | None = None,
+    scenario: str | Path | None = None,
+    force: bool = False,
+) -> Commissioned:
     """Fit a unit's own parameter set from recordings of it while healthy (docs/reference.md, Commissioning).
 
     ``recordings``: contract traces (Parquet) or, with ``columns``, rig recordings;
@@ -302,8 +345,14 @@ def commission(recordings: Sequence[str | Path], output: str | Path, *,
     commissioning.check_explained(result, prepared)
     output = Path(output)
     name = re.sub(r"[^A-Za-z0-9_-]", "-", output.stem) or "unit"
-    text = commissioning.unit_set(base, result, prepared, name, datetime.date.today().isoformat(),
-                                  None if columns is None else str(columns))
+    text = commissioning.unit_set(
+        base,
+        result,
+        prepared,
+        name,
+        datetime.date.today().isoformat(),
+        None if columns is None else str(columns),
+    )
     output.parent.mkdir(parents=True, exist_ok=True)
     tmp = output.with_name(f".{output.name}.{os.getpid()}.tmp")
     try:
@@ -311,18 +360,36 @@ def commission(recordings: Sequence[str | Path], output: str | Path, *,
         tmp.replace(output)
     finally:
         tmp.unlink(missing_ok=True)
-    fitted = {k: {"value": result.values[k], "base": result.base[k],
-                  "standard_error": commissioning.reported_error(k, result.values[k], e)}
-              for k, e in result.standard_errors.items()}
-    return Commissioned(output, fitted, result.not_determined, result.degenerate,
-                        result.hinge_moments, result.residual)
+    fitted = {
+        k: {
+            "value": result.values[k],
+            "base": result.base[k],
+            "standard_error": commissioning.reported_error(k, result.values[k], e),
+        }
+        for k, e in result.standard_errors.items()
+    }
+    return Commissioned(
+        output,
+        fitted,
+        result.not_determined,
+        result.degenerate,
+        result.hinge_moments,
+        result.residual,
+    )
 
 
-def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = None,
-             parameters: str | Path | None = None, columns: str | Path | None = None,
-             output: str | Path | None = None, inspection: dict | None = None,
-             nuisances: list[str] | None = None, force: bool = False,
-             show_progress: bool = False) -> Report:
+def identify(
+    trace: str | Path | pd.DataFrame,
+    *,
+    scenario: str | Path | None = None,
+    parameters: str | Path | None = None,
+    columns: str | Path | None = None,
+    output: str | Path | None = None,
+    inspection: dict | None = None,
+    nuisances: list[str] | None = None,
+    force: bool = False,
+    show_progress: bool = False,
+) -> Report:
     """Identify the faults in a measured trace (a Parquet path or a DataFrame).
 
     Settings come from ``scenario`` when given, else from the scenario embedded in
@@ -348,34 +415,52 @@ def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = 
         source = Path(trace)
         replayed = None  # the set whose controller signs a current built from phase currents
         if columns is not None:
-            replayed = (_parameters(parameters, chosen.parameters, Path(str(scenario)).parent, str(scenario))
-                        if chosen is not None else _parameters(parameters, None, None, "--parameters"))
+            replayed = (
+                _parameters(
+                    parameters, chosen.parameters, Path(str(scenario)).parent, str(scenario)
+                )
+                if chosen is not None
+                else _parameters(parameters, None, None, "--parameters")
+            )
         measured = _measured(source, columns, replayed, chosen)
     embedded = _trace_scenario(measured, source)
     basis = chosen or embedded
     if chosen is not None:
-        params = _parameters(parameters, chosen.parameters, Path(str(scenario)).parent, str(scenario))
+        params = _parameters(
+            parameters, chosen.parameters, Path(str(scenario)).parent, str(scenario)
+        )
     else:
         relative = source.parent if isinstance(source, Path) else None
-        params = _parameters(parameters, _trace_set(measured, embedded, relative), relative,
-                             f"{source} (embedded scenario)")
-    resolved = resolve_settings(basis.identify if basis is not None else IdentifySettings(),
-                                measured.metadata, params, nuisances)
+        params = _parameters(
+            parameters,
+            _trace_set(measured, embedded, relative),
+            relative,
+            f"{source} (embedded scenario)",
+        )
+    resolved = resolve_settings(
+        basis.identify if basis is not None else IdentifySettings(),
+        measured.metadata,
+        params,
+        nuisances,
+    )
     settings = resolved.settings
     check_sampling(measured, str(source))
     check_plausible(measured, params, source)
     check_at_rest(measured, params, source)
     load, load_note = _load_of(embedded, chosen, settings)
     inp = inputs_from_trace(measured, params, load)
-    recordings = (_commissioning_residuals(params) if settings.nominal_correction == "recording"
-                  else [])
-    result = identify_trace(measured, inp, params, settings, show_progress=show_progress,
-                            recordings=recordings)
+    recordings = (
+        _commissioning_residuals(params) if settings.nominal_correction == "recording" else []
+    )
+    result = identify_trace(
+        measured, inp, params, settings, show_progress=show_progress, recordings=recordings
+    )
 
     truth = flatten(embedded.faults) if embedded is not None else None
     error = verdicts.errors(result.estimate, truth) if truth is not None else None
-    health = verdicts.health(result.estimate, settings.estimate, params,
-                             result.confidence.inconclusive)
+    health = verdicts.health(
+        result.estimate, settings.estimate, params, result.confidence.inconclusive
+    )
     flagged = health.get(PHASE_FAULT) in ("incipient", "degraded")
     confidence = confidence_record(result.confidence)
     if not flagged:  # a phase is named, with its confidence, only beside a flagged short
@@ -386,23 +471,37 @@ def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = 
         "truth": nested(truth) if truth is not None else None,
         "error": nested(error) if error is not None else None,
         "health": health,
-        "interval": nested({q: list(result.confidence.interval[q])
-                            if q in result.confidence.interval else None for q in QUANTITIES}),
+        "interval": nested(
+            {
+                q: list(result.confidence.interval[q]) if q in result.confidence.interval else None
+                for q in QUANTITIES
+            }
+        ),
         f"{PHASE_FAULT}_phase": phase,
         "nuisance": {name: result.estimate[name] for name in settings.nuisances or []},
-        "nuisance_interval": {name: [x if math.isfinite(x) else None
-                                     for x in result.confidence.interval[name]]
-                              for name in settings.nuisances or []},
+        "nuisance_interval": {
+            name: [x if math.isfinite(x) else None for x in result.confidence.interval[name]]
+            for name in settings.nuisances or []
+        },
         "fitness": result.fitness,
         "confidence": confidence,
-        "correction": {"applied": result.objective.correction.applied,
-                       "note": result.objective.correction.note},
-        "load": {"applied": load.model_dump(mode="json") if load is not None else None,
-                 "note": load_note},
+        "correction": {
+            "applied": result.objective.correction.applied,
+            "note": result.objective.correction.note,
+        },
+        "load": {
+            "applied": load.model_dump(mode="json") if load is not None else None,
+            "note": load_note,
+        },
         "defaults": resolved.notes,
-        "ga": {"estimate": nested(result.ga_estimate), "fitness": result.ga_fitness,
-               "generations": result.generations, "stopped_by": result.stopped_by,
-               "refined": result.refined, "logbook": result.logbook},
+        "ga": {
+            "estimate": nested(result.ga_estimate),
+            "fitness": result.ga_fitness,
+            "generations": result.generations,
+            "stopped_by": result.stopped_by,
+            "refined": result.refined,
+            "logbook": result.logbook,
+        },
         "evaluations": result.evaluations,
         "elapsed_s": result.elapsed_s,
         "seed": settings.ga.seed,
@@ -424,11 +523,19 @@ def identify(trace: str | Path | pd.DataFrame, *, scenario: str | Path | None = 
     objective = result.objective
     identified = objective.simulate(result.estimate)
     residual = objective.target.current - objective.instants.sample(
-        low_pass(identified["current"], objective.filter_width))
+        low_pass(identified["current"], objective.filter_width)
+    )
     floor = result.confidence.floor.sigma["current"] / np.sqrt(objective.measured_width)
     figures = {
-        "fit": plot_fit(measured, identified, objective.measured_width, objective.filter_width,
-                        folder / "fit.png", residual, floor),
+        "fit": plot_fit(
+            measured,
+            identified,
+            objective.measured_width,
+            objective.filter_width,
+            folder / "fit.png",
+            residual,
+            floor,
+        ),
         "convergence": plot_convergence(result.logbook, folder / "convergence.png"),
     }
     data["figures"] = {name: path.name for name, path in figures.items()}
@@ -449,7 +556,8 @@ def _name_phases_as_recorded(data: dict, identity: dict | None) -> None:
         data["phase_identity"]["note"] = (
             f"the recorded phase currents could not be matched to the model's windings "
             f"(agreement {identity['agreement']:.2f}, runner-up {identity['runner_up']:.2f}): "
-            "phases are named by the model's convention")
+            "phases are named by the model's convention"
+        )
         return
     rename = {w: key.removeprefix("current_") for w, key in identity["windings"].items()}
     data["phase_channels"] = {rename[w]: identity["channels"][w] for w in rename}
@@ -463,8 +571,10 @@ def _name_phases_as_recorded(data: dict, identity: dict | None) -> None:
         data[f"{PHASE_FAULT}_phase"] = rename[data[f"{PHASE_FAULT}_phase"]]
     isolation = data["confidence"].get("isolation")
     if isolation:
-        isolation["phase"], isolation["runner_up"] = (rename[isolation["phase"]],
-                                                      rename[isolation["runner_up"]])
+        isolation["phase"], isolation["runner_up"] = (
+            rename[isolation["phase"]],
+            rename[isolation["runner_up"]],
+        )
     errors = data["confidence"]["standard_error"]
     if f"{PHASE_FAULT}_a" in errors:
         errors.update({f"{PHASE_FAULT}_{rename[w]}": errors[f"{PHASE_FAULT}_{w}"] for w in rename})
@@ -477,18 +587,24 @@ def _check_phase_identity(data: dict, params: Parameters) -> None:
     found = data.get("phase_identity")
     if record is None or not found or not found.get("trusted"):
         return
-    known = [r.phase_identity for r in record.recordings
-             if r.phase_identity and r.phase_identity.get("trusted")]
+    known = [
+        r.phase_identity
+        for r in record.recordings
+        if r.phase_identity and r.phase_identity.get("trusted")
+    ]
     if not known:
         return
     same = all(k["channels"] == found["channels"] for k in known)
     found["commissioning"] = (
-        "agrees with the unit's commissioning recordings" if same else
-        "DIFFERS from the unit's commissioning recordings (commissioning: "
+        "agrees with the unit's commissioning recordings"
+        if same
+        else "DIFFERS from the unit's commissioning recordings (commissioning: "
         + ", ".join(f"winding {w} on {c}" for w, c in known[0]["channels"].items())
-        + "; now: " + ", ".join(f"winding {w} on {c}" for w, c in found["channels"].items())
+        + "; now: "
+        + ", ".join(f"winding {w} on {c}" for w, c in found["channels"].items())
         + "): the logger was rewired or the map changed; the phase is named as this "
-          "recording's channels say")
+        "recording's channels say"
+    )
 
 
 def _load_of(embedded: Scenario | None, chosen: Scenario | None, settings: IdentifySettings):
@@ -498,13 +614,17 @@ def _load_of(embedded: Scenario | None, chosen: Scenario | None, settings: Ident
     if embedded is not None:
         return embedded.load, "the trace's own scenario"
     if chosen is None or chosen.load.kind == "none":
-        return None, ("none: the recording's hinge moment is estimated (nuisance hinge_moment)"
-                      if "hinge_moment" in (settings.nuisances or []) else
-                      "none (no scenario load; hinge moment not estimated)")
+        return None, (
+            "none: the recording's hinge moment is estimated (nuisance hinge_moment)"
+            if "hinge_moment" in (settings.nuisances or [])
+            else "none (no scenario load; hinge moment not estimated)"
+        )
     if "hinge_moment" in (settings.nuisances or []):
-        return None, (f"the scenario's {chosen.load.kind} load is not applied to the recording: "
-                      "its hinge moment is estimated (nuisance hinge_moment); to state a known "
-                      "load instead, identify with --nuisances none or resistance_factor")
+        return None, (
+            f"the scenario's {chosen.load.kind} load is not applied to the recording: "
+            "its hinge moment is estimated (nuisance hinge_moment); to state a known "
+            "load instead, identify with --nuisances none or resistance_factor"
+        )
     return chosen.load, "the --scenario's load, stated for this recording"
 
 
@@ -528,8 +648,10 @@ class Calibration:
     folder: Path
 
 
-def calibrate(parameters: str | Path = "default", output: str | Path = Path("out") / "calibration",
-              ) -> Calibration:
+def calibrate(
+    parameters: str | Path = "default",
+    output: str | Path = Path("out") / "calibration",
+) -> Calibration:
     """Fit the Monitor's nominal equivalents and Z-zeta gain to the Reference Model (docs/reference.md, Calibration).
 
     Writes ``calibration.json``, ``z_vs_zeta.png`` and ``parameters.yaml`` (the input
@@ -551,11 +673,19 @@ def calibrate(parameters: str | Path = "default", output: str | Path = Path("out
     result["emaprog_version"] = __version__
     today = datetime.date.today().isoformat()
     (folder / "parameters.yaml").write_text(
-        calibration.calibrated_set(params.source_file, result, today))
+        calibration.calibrated_set(params.source_file, result, today)
+    )
     result["parameter_set"] = "parameters.yaml"
     write_json(folder / "calibration.json", result)
-    return Calibration(result["eccentricity_gain"], result["r_squared"], result["commutation_loss"],
-                       result["signature_error"], folder / "parameters.yaml", result, folder)
+    return Calibration(
+        result["eccentricity_gain"],
+        result["r_squared"],
+        result["commutation_loss"],
+        result["signature_error"],
+        folder / "parameters.yaml",
+        result,
+        folder,
+    )
 
 
 class SweepOutcome(NamedTuple):
@@ -567,7 +697,9 @@ class SweepOutcome(NamedTuple):
     skipped: int  # cases already finished by an earlier run (--resume)
     failed: int  # cases without a result (see RESULTS_DIR/failures/)
     regressions: list[str]  # figures worse than --baseline beyond their tolerance
-    cases: pd.DataFrame  # one row per finished case (case columns (docs/reference.md, Campaign results))
+    cases: (
+        pd.DataFrame
+    )  # one row per finished case (case columns (docs/reference.md, Campaign results))
 
 
 def _read_baseline(path: Path) -> dict:
@@ -581,16 +713,27 @@ def _read_baseline(path: Path) -> dict:
         data = json.loads(path.read_text())
         regression_figures(data)
     except (json.JSONDecodeError, UnicodeDecodeError):
-        raise InputError(path, "baseline is not valid JSON (give a summary.json of an earlier sweep)") from None
+        raise InputError(
+            path, "baseline is not valid JSON (give a summary.json of an earlier sweep)"
+        ) from None
     except (KeyError, TypeError, AttributeError):
-        raise InputError(path, "baseline lacks the summary keys errors, detection, false_alarms, "
-                         "isolation (give a summary.json of an earlier sweep)") from None
+        raise InputError(
+            path,
+            "baseline lacks the summary keys errors, detection, false_alarms, "
+            "isolation (give a summary.json of an earlier sweep)",
+        ) from None
     return data
 
 
-def sweep(campaign_path: str | Path, output: str | Path | None = None, workers: int | None = None,
-          scheduler: str | None = None, resume: bool = False, baseline: str | Path | None = None,
-          show_progress: bool = False) -> SweepOutcome:
+def sweep(
+    campaign_path: str | Path,
+    output: str | Path | None = None,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    resume: bool = False,
+    baseline: str | Path | None = None,
+    show_progress: bool = False,
+) -> SweepOutcome:
     """Run (or resume) a Monte-Carlo campaign and write its case dataset and summary (docs/reference.md, Campaign YAML and Campaign results).
 
     Cases run on ``workers`` local processes (default: all cores; 1 runs them in
@@ -607,15 +750,37 @@ def sweep(campaign_path: str | Path, output: str | Path | None = None, workers: 
     reference_summary = _read_baseline(Path(baseline)) if baseline is not None else None
     client = campaigns.connect(scheduler) if scheduler is not None else None
     try:
-        return _sweep(campaign_path, campaign, base, params, output, workers, client,
-                      resume, baseline, reference_summary, show_progress)
+        return _sweep(
+            campaign_path,
+            campaign,
+            base,
+            params,
+            output,
+            workers,
+            client,
+            resume,
+            baseline,
+            reference_summary,
+            show_progress,
+        )
     finally:
         if client is not None:
             client.close()
 
 
-def _sweep(campaign_path: Path, campaign, base, params, output, workers, client, resume,
-           baseline, reference_summary, show_progress) -> SweepOutcome:
+def _sweep(
+    campaign_path: Path,
+    campaign,
+    base,
+    params,
+    output,
+    workers,
+    client,
+    resume,
+    baseline,
+    reference_summary,
+    show_progress,
+) -> SweepOutcome:
     import time
 
     from .campaign import cases as campaigns
@@ -626,44 +791,83 @@ def _sweep(campaign_path: Path, campaign, base, params, output, workers, client,
     folder = Path(output) if output else Path("out") / campaign.name
     store = campaigns.CaseStore(folder)
     meta = {
-        "campaign": campaign.name, "campaign_file": str(campaign_path), "campaign_hash": digest,
-        "planned": campaign.cases, "seed": campaign.seed, "scenario": base.name,
-        "parameters": params.source_file, "emaprog_version": __version__,
+        "campaign": campaign.name,
+        "campaign_file": str(campaign_path),
+        "campaign_hash": digest,
+        "planned": campaign.cases,
+        "seed": campaign.seed,
+        "scenario": base.name,
+        "parameters": params.source_file,
+        "emaprog_version": __version__,
     }
-    store.open(campaign_path, digest, {**meta, "campaign_definition": campaign.model_dump(mode="json"),
-                                       "base_scenario": base.model_dump(mode="json"),
-                                       "parameter_values": params.values()}, resume)
+    store.open(
+        campaign_path,
+        digest,
+        {
+            **meta,
+            "campaign_definition": campaign.model_dump(mode="json"),
+            "base_scenario": base.model_dump(mode="json"),
+            "parameter_values": params.values(),
+        },
+        resume,
+    )
     finished = store.finished()
     todo = [k for k in range(campaign.cases) if k not in finished]
     specs = campaigns.case_specs(campaign, base, params, digest, todo)
     workers = campaigns.worker_count(workers, len(todo))
     start = time.perf_counter()
-    counts = campaigns.execute(specs, store, meta, len(todo), workers, client,
-                               f"sweep {campaign.name}", len(finished), show_progress)
+    counts = campaigns.execute(
+        specs,
+        store,
+        meta,
+        len(todo),
+        workers,
+        client,
+        f"sweep {campaign.name}",
+        len(finished),
+        show_progress,
+    )
     wall_s = time.perf_counter() - start
 
     frame = store.read()
     if frame.empty:
-        raise RuntimeError(f"no case of campaign '{campaign.name}' finished; the errors are in "
-                           f"{store.failures}")
-    summary = {**meta, "finished": int(len(frame)), "failed": len(store.failed()),
-               **summarize(frame, params)}
-    summary["run"] = {"ran": counts["done"] + counts["failed"], "skipped": len(finished),
-                      "wall_s": wall_s, "workers": None if client else workers,
-                      "scheduler": client.scheduler.address if client else None}
+        raise RuntimeError(
+            f"no case of campaign '{campaign.name}' finished; the errors are in {store.failures}"
+        )
+    summary = {
+        **meta,
+        "finished": int(len(frame)),
+        "failed": len(store.failed()),
+        **summarize(frame, params),
+    }
+    summary["run"] = {
+        "ran": counts["done"] + counts["failed"],
+        "skipped": len(finished),
+        "wall_s": wall_s,
+        "workers": None if client else workers,
+        "scheduler": client.scheduler.address if client else None,
+    }
     errors = {q: error_values(frame, q, params) for q in ACCURACY}
     summary["figures"] = {
         "parity": plot_parity(frame, folder / "parity.png").name,
-        "errors": plot_error_histograms(errors, {q: a.tolerance for q, a in ACCURACY.items()},
-                                        folder / "errors.png").name,
+        "errors": plot_error_histograms(
+            errors, {q: a.tolerance for q, a in ACCURACY.items()}, folder / "errors.png"
+        ).name,
     }
     regressions = compare(summary, reference_summary) if reference_summary is not None else []
     if reference_summary is not None:
         summary["regression"] = {"baseline": str(baseline), "worse": regressions}
     write_json(folder / "summary.json", summary)
     (folder / "summary.md").write_text(markdown(summary))
-    return SweepOutcome(folder, summary, counts["done"] + counts["failed"], len(finished),
-                        summary["failed"], regressions, frame)
+    return SweepOutcome(
+        folder,
+        summary,
+        counts["done"] + counts["failed"],
+        len(finished),
+        summary["failed"],
+        regressions,
+        frame,
+    )
 
 
 def _history_source(history_path: Path, simulate: bool) -> str:
@@ -679,10 +883,15 @@ def _history_source(history_path: Path, simulate: bool) -> str:
             raise InputError(history_path, "history table not found")
         return "table"
     if history_path.suffix in (".yaml", ".yml"):
-        raise InputError(history_path, "is a history YAML: pass --simulate to simulate and "
-                         "identify its inspections")
-    raise InputError(history_path, "give a Parquet history table, a folder of report.json, or "
-                     "a synthetic history YAML with --simulate")
+        raise InputError(
+            history_path,
+            "is a history YAML: pass --simulate to simulate and identify its inspections",
+        )
+    raise InputError(
+        history_path,
+        "give a Parquet history table, a folder of report.json, or "
+        "a synthetic history YAML with --simulate",
+    )
 
 
 @dataclass(frozen=True)
@@ -695,9 +904,16 @@ class Trend:
     folder: Path
 
 
-def trend(history_path: str | Path, output: str | Path | None = None, simulate: bool = False,
-          law: str = "auto", parameters: str = "default", workers: int | None = None,
-          resume: bool = False, show_progress: bool = False) -> Trend:
+def trend(
+    history_path: str | Path,
+    output: str | Path | None = None,
+    simulate: bool = False,
+    law: str = "auto",
+    parameters: str = "default",
+    workers: int | None = None,
+    resume: bool = False,
+    show_progress: bool = False,
+) -> Trend:
     """Fit each fault's growth over usage and predict its remaining useful life.
 
     ``history_path`` is a Parquet table, a folder of ``report.json`` files, or
@@ -722,24 +938,49 @@ def trend(history_path: str | Path, output: str | Path | None = None, simulate: 
         params = campaigns.load_parameters(history_path, history, base)
         digest = histories.history_hash(history, base, params)
         store = campaigns.CaseStore(folder / "inspections")
-        meta = {"history": history.name, "history_file": str(history_path), "history_hash": digest,
-                "actuator": history.actuator, "emaprog_version": __version__}
-        store.open(history_path, digest, {**meta, "history_definition": history.model_dump(mode="json"),
-                                          "base_scenario": base.model_dump(mode="json"),
-                                          "parameter_values": params.values()}, resume)
+        meta = {
+            "history": history.name,
+            "history_file": str(history_path),
+            "history_hash": digest,
+            "actuator": history.actuator,
+            "emaprog_version": __version__,
+        }
+        store.open(
+            history_path,
+            digest,
+            {
+                **meta,
+                "history_definition": history.model_dump(mode="json"),
+                "base_scenario": base.model_dump(mode="json"),
+                "parameter_values": params.values(),
+            },
+            resume,
+        )
         finished = store.finished()
         todo = [k for k in range(history.inspections.count) if k not in finished]
         specs = histories.inspection_specs(history, base, params, digest, todo)
         workers = campaigns.worker_count(workers, len(todo))
-        campaigns.execute(specs, store, meta, len(todo), workers, None,
-                          f"inspections of {history.actuator}", len(finished), show_progress)
+        campaigns.execute(
+            specs,
+            store,
+            meta,
+            len(todo),
+            workers,
+            None,
+            f"inspections of {history.actuator}",
+            len(finished),
+            show_progress,
+        )
         if len(store.finished()) < 3:
             raise RuntimeError(f"fewer than 3 inspections identified; errors in {store.failures}")
         table = histories.from_cases(history, params, store, str(history_path))
     else:
         params = parameter_sets.load(parameters)
-        table = (histories.read_reports(history_path) if kind == "reports"
-                 else histories.read_table(history_path))
+        table = (
+            histories.read_reports(history_path)
+            if kind == "reports"
+            else histories.read_table(history_path)
+        )
     result = analyse(table, params, law)
     folder.mkdir(parents=True, exist_ok=True)
     result["figure"] = plot_trend(result, folder / "trend.png").name

@@ -28,9 +28,29 @@ import numpy as np
 
 from .kernels.structs import FaultParams, MonitorFaults
 
-__all__ = ["CATALOGUE", "FAULTS", "FAULT_NAMES", "HEALTHY", "PHASES", "PHASE_FAULT", "QUANTITIES", "Fault", "ModelError",
-           "FaultParams", "MonitorFaults", "Quantity", "fault_load", "flatten", "healthy_values",
-           "monitor_form", "nested", "reference_form", "severity", "values_of", "worst_phase"]
+__all__ = [
+    "CATALOGUE",
+    "FAULTS",
+    "FAULT_NAMES",
+    "HEALTHY",
+    "PHASES",
+    "PHASE_FAULT",
+    "QUANTITIES",
+    "Fault",
+    "ModelError",
+    "FaultParams",
+    "MonitorFaults",
+    "Quantity",
+    "fault_load",
+    "flatten",
+    "healthy_values",
+    "monitor_form",
+    "nested",
+    "reference_form",
+    "severity",
+    "values_of",
+    "worst_phase",
+]
 
 TWO_PI = 2.0 * math.pi
 Layout = Literal["scalar", "per_phase", "polar"]
@@ -40,7 +60,9 @@ class Quantity(NamedTuple):
     """One scalar fault quantity (a column stem of the case table, docs/reference.md, Campaign results)."""
 
     name: str  # e.g. "short_circuit_a"
-    key: str | None  # key inside the fault's YAML mapping ("a", "zeta"); None: the fault is a number
+    key: (
+        str | None
+    )  # key inside the fault's YAML mapping ("a", "zeta"); None: the fault is a number
     unit: str
     healthy: float
     lower: float  # allowed true values [lower, upper] (upper excluded when upper_open)
@@ -108,35 +130,115 @@ class Fault(NamedTuple):
 
 
 def _phase(x: str) -> Quantity:
-    return Quantity(f"short_circuit_{x}", x, "-", 0.0, 0.0, 1.0, True,
-                    f"short circuit {x.upper()}", "absolute", 0.03, False)
+    return Quantity(
+        f"short_circuit_{x}",
+        x,
+        "-",
+        0.0,
+        0.0,
+        1.0,
+        True,
+        f"short circuit {x.upper()}",
+        "absolute",
+        0.03,
+        False,
+    )
 
 
 CATALOGUE: tuple[Fault, ...] = (
-    Fault("friction", "dry-friction increase", "scalar",
-          (Quantity("friction", None, "-", 1.0, 0.1, 10.0, False, "friction multiplier", "relative",
-                    0.05, False),),
-          "friction |k_f - 1| [-]", (0.5, 4.0), (0.1, 10.0), 0.019,
-          (ModelError(1.27, 0.0275, 8.84e-5),), (ModelError(1.0, 0.005, 1.29e-4),)),
-    Fault("backlash", "backlash", "scalar",
-          (Quantity("backlash", None, "rad", 0.0, 0.0, 0.01, False, "backlash", "absolute", 5e-5,
-                    False),),
-          "backlash, total play [rad]", (0.0, 1.5e-3), (0.0, 0.01), 1.9e-5,
-          (ModelError(2.65, 0.0225, 2.29e-7),), (ModelError(1.11, 0.0175, 2.29e-7),)),
-    Fault("short_circuit", "phase short circuit", "per_phase",
-          tuple(_phase(x) for x in "abc"),
-          "short circuit, worst phase [-]", (0.0, 0.5), (0.0, 0.95), 0.02,
-          (ModelError(2.01, 0.0125), ModelError(1.92, 0.02, 3e-5), ModelError(2.2, 0.0075)),
-          (ModelError(2.07, 0.0075), ModelError(1.03, 0.0275),
-           ModelError(2.64, 0.0, 3e-5))),
-    Fault("eccentricity", "rotor static eccentricity", "polar",
-          (Quantity("eccentricity_zeta", "zeta", "-", 0.0, 0.0, 1.0, True, "eccentricity zeta",
-                    "absolute", 0.05, False),
-           Quantity("eccentricity_phase", "phase", "rad", 0.0, 0.0, TWO_PI, False,
-                    "eccentricity phase", "absolute", None, True)),
-          "eccentricity zeta [-]", (0.0, 0.8), (0.0, 0.95), 0.055,
-          (ModelError(1.59, 0.02, 7.31e-5), ModelError(2.01, 0.0, 5.54e-4)),
-          (ModelError(1.0, 0.0, 3.35e-4), ModelError(2.46, 0.0, 8.1e-4))),
+    Fault(
+        "friction",
+        "dry-friction increase",
+        "scalar",
+        (
+            Quantity(
+                "friction",
+                None,
+                "-",
+                1.0,
+                0.1,
+                10.0,
+                False,
+                "friction multiplier",
+                "relative",
+                0.05,
+                False,
+            ),
+        ),
+        "friction |k_f - 1| [-]",
+        (0.5, 4.0),
+        (0.1, 10.0),
+        0.019,
+        (ModelError(1.27, 0.0275, 8.84e-5),),
+        (ModelError(1.0, 0.005, 1.29e-4),),
+    ),
+    Fault(
+        "backlash",
+        "backlash",
+        "scalar",
+        (
+            Quantity(
+                "backlash", None, "rad", 0.0, 0.0, 0.01, False, "backlash", "absolute", 5e-5, False
+            ),
+        ),
+        "backlash, total play [rad]",
+        (0.0, 1.5e-3),
+        (0.0, 0.01),
+        1.9e-5,
+        (ModelError(2.65, 0.0225, 2.29e-7),),
+        (ModelError(1.11, 0.0175, 2.29e-7),),
+    ),
+    Fault(
+        "short_circuit",
+        "phase short circuit",
+        "per_phase",
+        tuple(_phase(x) for x in "abc"),
+        "short circuit, worst phase [-]",
+        (0.0, 0.5),
+        (0.0, 0.95),
+        0.02,
+        (ModelError(2.01, 0.0125), ModelError(1.92, 0.02, 3e-5), ModelError(2.2, 0.0075)),
+        (ModelError(2.07, 0.0075), ModelError(1.03, 0.0275), ModelError(2.64, 0.0, 3e-5)),
+    ),
+    Fault(
+        "eccentricity",
+        "rotor static eccentricity",
+        "polar",
+        (
+            Quantity(
+                "eccentricity_zeta",
+                "zeta",
+                "-",
+                0.0,
+                0.0,
+                1.0,
+                True,
+                "eccentricity zeta",
+                "absolute",
+                0.05,
+                False,
+            ),
+            Quantity(
+                "eccentricity_phase",
+                "phase",
+                "rad",
+                0.0,
+                0.0,
+                TWO_PI,
+                False,
+                "eccentricity phase",
+                "absolute",
+                None,
+                True,
+            ),
+        ),
+        "eccentricity zeta [-]",
+        (0.0, 0.8),
+        (0.0, 0.95),
+        0.055,
+        (ModelError(1.59, 0.02, 7.31e-5), ModelError(2.01, 0.0, 5.54e-4)),
+        (ModelError(1.0, 0.0, 3.35e-4), ModelError(2.46, 0.0, 8.1e-4)),
+    ),
 )
 
 FAULTS: dict[str, Fault] = {f.name: f for f in CATALOGUE}
@@ -221,9 +323,17 @@ def fault_load(values, incipient: dict[str, float]):
     (:func:`severity`) over their incipient threshold ``incipient[fault]`` [-]. 0 on a
     healthy unit, 1 for one fault at its incipient threshold. ``values`` may hold floats or
     equal-length arrays (a campaign's estimates)."""
-    total = sum(np.max([np.abs(np.asarray(values[q.name], dtype=np.float64) - q.healthy)
-                        for q in fault.magnitudes], axis=0) / incipient[fault.name]
-                for fault in CATALOGUE)
+    total = sum(
+        np.max(
+            [
+                np.abs(np.asarray(values[q.name], dtype=np.float64) - q.healthy)
+                for q in fault.magnitudes
+            ],
+            axis=0,
+        )
+        / incipient[fault.name]
+        for fault in CATALOGUE
+    )
     return float(total) if np.ndim(total) == 0 else total
 
 

@@ -33,9 +33,15 @@ def task(description: str, total: int, enabled: bool = True) -> Iterator[Advance
             TimeRemainingColumn,
         )
 
-        with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                      TextColumn("{task.fields[info]}"), TimeElapsedColumn(),
-                      TimeRemainingColumn(), transient=False) as bar:
+        with Progress(
+            TextColumn("{task.description}"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TextColumn("{task.fields[info]}"),
+            TimeElapsedColumn(),
+            TimeRemainingColumn(),
+            transient=False,
+        ) as bar:
             handle = bar.add_task(description, total=total, info="")
 
             def advance(steps: int = 1, **fields: object) -> None:
@@ -53,8 +59,11 @@ def task(description: str, total: int, enabled: bool = True) -> Iterator[Advance
             state["next"] = fraction + 0.1
             info = " ".join(f"{k}={v}" for k, v in fields.items())
             elapsed = time.monotonic() - state["start"]
-            print(f"{description}: {state['done']}/{total} {info} ({elapsed:.1f} s)".rstrip(),
-                  file=sys.stderr, flush=True)
+            print(
+                f"{description}: {state['done']}/{total} {info} ({elapsed:.1f} s)".rstrip(),
+                file=sys.stderr,
+                flush=True,
+            )
 
     yield advance_plain
 

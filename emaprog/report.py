@@ -44,9 +44,15 @@ def plot_trace(trace: Trace, path: str | Path, title: str = "") -> Path:
     return path
 
 
-def plot_fit(trace: Trace, identified: dict[str, np.ndarray], measured_width: int,
-             model_width: int, path: str | Path, residual: np.ndarray | None = None,
-             floor: float | None = None) -> Path:
+def plot_fit(
+    trace: Trace,
+    identified: dict[str, np.ndarray],
+    measured_width: int,
+    model_width: int,
+    path: str | Path,
+    residual: np.ndarray | None = None,
+    floor: float | None = None,
+) -> Path:
     """Measured vs identified Monitor current (both over the fitness's 1 ms) and position;
     with ``residual`` (the fitted current error at the recorded instants [A]) a third panel
     draws it against the recording's noise floor ``floor`` (1 ms mean of its noise, 1 sigma).
@@ -61,8 +67,13 @@ def plot_fit(trace: Trace, identified: dict[str, np.ndarray], measured_width: in
     panels = 2 if residual is None else 3
     fig, ax = plt.subplots(panels, 1, figsize=(10, 3 * panels), sharex=True)
     ax[0].plot(t, low_pass(trace["current"], measured_width), lw=0.9, label="measured (1 ms mean)")
-    ax[0].plot(tm, low_pass(identified["current"], model_width), lw=0.9, ls="--",
-               label="identified Monitor Model")
+    ax[0].plot(
+        tm,
+        low_pass(identified["current"], model_width),
+        lw=0.9,
+        ls="--",
+        label="identified Monitor Model",
+    )
     ax[0].set_ylabel("equivalent current [A]")
     ax[0].legend(loc="upper right")
     ax[1].plot(t, trace["command"], lw=0.8, color="0.5", label="command")
@@ -71,11 +82,18 @@ def plot_fit(trace: Trace, identified: dict[str, np.ndarray], measured_width: in
     ax[1].set_ylabel("surface position [rad]")
     ax[1].legend(loc="upper right")
     if residual is not None:
-        ax[2].plot(t, residual, lw=0.8, label="residual (corrected measurement - Monitor, 1 ms mean)")
+        ax[2].plot(
+            t, residual, lw=0.8, label="residual (corrected measurement - Monitor, 1 ms mean)"
+        )
         if floor is not None:
             for sign in (-2.0, 2.0):
-                ax[2].axhline(sign * floor, color="C3", ls=":", lw=1.0,
-                              label="noise floor (+-2 sigma)" if sign > 0 else None)
+                ax[2].axhline(
+                    sign * floor,
+                    color="C3",
+                    ls=":",
+                    lw=1.0,
+                    label="noise floor (+-2 sigma)" if sign > 0 else None,
+                )
         ax[2].set_ylabel("current residual [A]")
         ax[2].legend(loc="upper right")
     ax[-1].set_xlabel("time [s]")
@@ -130,15 +148,19 @@ def identification_summary(report: dict) -> str:
     phase = report.get(f"{PHASE_FAULT}_phase")
     isolation = report["confidence"]["isolation"]
     if report["health"].get(PHASE_FAULT) in ("incipient", "degraded") and not phase and isolation:
-        lines.append(f"{FAULTS[PHASE_FAULT].label}: phase not determined, "
-                     f"{isolation['phase'].upper()} or {isolation['runner_up'].upper()} "
-                     f"(confidence {isolation['confidence']:.0%})")
+        lines.append(
+            f"{FAULTS[PHASE_FAULT].label}: phase not determined, "
+            f"{isolation['phase'].upper()} or {isolation['runner_up'].upper()} "
+            f"(confidence {isolation['confidence']:.0%})"
+        )
     if report["health"].get(PHASE_FAULT) in ("incipient", "degraded") and phase:
         isolation = report["confidence"]["isolation"]
         channel = (report.get("phase_channels") or {}).get(phase)
-        lines.append(f"{FAULTS[PHASE_FAULT].label} on phase {phase.upper()}"
-                     + (f" (logger channel {channel})" if channel else "")
-                     + (f" (confidence {isolation['confidence']:.0%})" if isolation else ""))
+        lines.append(
+            f"{FAULTS[PHASE_FAULT].label} on phase {phase.upper()}"
+            + (f" (logger channel {channel})" if channel else "")
+            + (f" (confidence {isolation['confidence']:.0%})" if isolation else "")
+        )
     for fault, why in report["confidence"]["inconclusive"].items():
         lines.append(f"{fault} inconclusive: {why}")
     for label, keys, unit, fmt in ROWS:
@@ -150,18 +172,24 @@ def identification_summary(report: dict) -> str:
         if keys[0] in report["confidence"]["inconclusive"]:
             line += " (inconclusive: not a finding)"
         if report["truth"] is not None:
-            line += (f"   (true {_fmt(_pick(report['truth'], keys), fmt)}, "
-                     f"error {_fmt(_pick(report['error'], keys), fmt)})")
+            line += (
+                f"   (true {_fmt(_pick(report['truth'], keys), fmt)}, "
+                f"error {_fmt(_pick(report['error'], keys), fmt)})"
+            )
         lines.append(line)
     lines += [f"  {line}" for line in _operating_lines(report)]
-    lines.append(f"fitness {report['fitness']:.3e} after {report['evaluations']} Monitor runs "
-                 f"in {report['elapsed_s']:.1f} s")
+    lines.append(
+        f"fitness {report['fitness']:.3e} after {report['evaluations']} Monitor runs "
+        f"in {report['elapsed_s']:.1f} s"
+    )
     return "\n".join(lines)
 
 
 #: Operating conditions estimated beside the faults: label, unit, format.
-NUISANCE_ROWS = {"hinge_moment": ("hinge moment", "N m", "{:.1f}"),
-                 "resistance_factor": ("winding resistance factor", "-", "{:.3f}")}
+NUISANCE_ROWS = {
+    "hinge_moment": ("hinge moment", "N m", "{:.1f}"),
+    "resistance_factor": ("winding resistance factor", "-", "{:.3f}"),
+}
 
 
 def _operating_lines(report: dict) -> list[str]:
@@ -182,10 +210,12 @@ def _phase_sentence(report: dict) -> str:
     phase = report.get(f"{PHASE_FAULT}_phase")
     isolation = report["confidence"]["isolation"]
     if phase is None and isolation is not None:
-        return (f"Short circuit flagged, phase not determined: {isolation['phase'].upper()} or "
-                f"{isolation['runner_up'].upper()} (confidence {isolation['confidence']:.0%} "
-                f"for {isolation['phase'].upper()}, below the {MIN_PHASE_CONFIDENCE:.0%} a named "
-                "phase needs).")
+        return (
+            f"Short circuit flagged, phase not determined: {isolation['phase'].upper()} or "
+            f"{isolation['runner_up'].upper()} (confidence {isolation['confidence']:.0%} "
+            f"for {isolation['phase'].upper()}, below the {MIN_PHASE_CONFIDENCE:.0%} a named "
+            "phase needs)."
+        )
     if phase is None:
         return "Short circuit flagged, phase not determined."
     channel = (report.get("phase_channels") or {}).get(phase)
@@ -195,46 +225,63 @@ def _phase_sentence(report: dict) -> str:
     if check:
         sentence += f" Channel identity {check}."
     if isolation is not None:
-        sentence += (f" Confidence in phase {isolation['phase'].upper()} against phase "
-                     f"{isolation['runner_up'].upper()}: {isolation['confidence']:.1%} "
-                     f"(chi-square difference {isolation['delta_chi2']:.3g}).")
+        sentence += (
+            f" Confidence in phase {isolation['phase'].upper()} against phase "
+            f"{isolation['runner_up'].upper()}: {isolation['confidence']:.1%} "
+            f"(chi-square difference {isolation['delta_chi2']:.3g})."
+        )
     return sentence
 
 
 def report_markdown(report: dict) -> str:
     confidence = report["confidence"]
     truth = report["truth"] is not None
-    head = "| quantity | unit | estimate | 90 % interval | GA best |" + (" truth | error |" if truth else "")
+    head = "| quantity | unit | estimate | 90 % interval | GA best |" + (
+        " truth | error |" if truth else ""
+    )
     rule = "|---|---|---|---|---|" + ("---|---|" if truth else "")
     rows = []
     for label, keys, unit, fmt in ROWS:
         interval = _pick(report["interval"], keys)
         finding = "" if keys[0] not in confidence["inconclusive"] else " (inconclusive)"
-        cells = [label, unit, _fmt(_pick(report["estimate"], keys), fmt) + finding,
-                 "—" if interval is None else f"[{fmt.format(interval[0])}, {fmt.format(interval[1])}]",
-                 _fmt(_pick(report["ga"]["estimate"], keys), fmt)]
+        cells = [
+            label,
+            unit,
+            _fmt(_pick(report["estimate"], keys), fmt) + finding,
+            "—" if interval is None else f"[{fmt.format(interval[0])}, {fmt.format(interval[1])}]",
+            _fmt(_pick(report["ga"]["estimate"], keys), fmt),
+        ]
         if truth:
-            cells += [_fmt(_pick(report["truth"], keys), fmt), _fmt(_pick(report["error"], keys), fmt)]
+            cells += [
+                _fmt(_pick(report["truth"], keys), fmt),
+                _fmt(_pick(report["error"], keys), fmt),
+            ]
         rows.append("| " + " | ".join(cells) + " |")
     reasons = confidence["inconclusive"]
-    health = "\n".join(f"| {fault} | {verdict} | {reasons.get(fault, '')} |"
-                       for fault, verdict in report["health"].items())
+    health = "\n".join(
+        f"| {fault} | {verdict} | {reasons.get(fault, '')} |"
+        for fault, verdict in report["health"].items()
+    )
     floor = confidence["noise_floor"]
     ga = report["ga"]
     operating = ""
     if report.get("nuisance"):
-        operating = ("\n## Operating conditions (estimated, no verdict)\n\n| condition | unit | "
-                     "estimate | 90 % interval |\n|---|---|---|---|\n")
+        operating = (
+            "\n## Operating conditions (estimated, no verdict)\n\n| condition | unit | "
+            "estimate | 90 % interval |\n|---|---|---|---|\n"
+        )
         for name, value in report["nuisance"].items():
             label, unit, fmt = NUISANCE_ROWS[name]
             low, high = (report.get("nuisance_interval") or {}).get(name) or (None, None)
-            interval = "—" if low is None or high is None else f"[{fmt.format(low)}, {fmt.format(high)}]"
+            interval = (
+                "—" if low is None or high is None else f"[{fmt.format(low)}, {fmt.format(high)}]"
+            )
             operating += f"| {label} | {unit} | {fmt.format(value)} | {interval} |\n"
     load = report.get("load") or {}
     load_line = f"\nLoad applied to the model: {load['note']}.\n" if load.get("note") else ""
-    return f"""# Fault identification: {report['scenario'] or report['trace']}
+    return f"""# Fault identification: {report["scenario"] or report["trace"]}
 
-Trace `{report['trace']}`, parameter set `{report['parameters']}`, emaprog {report['emaprog_version']}.
+Trace `{report["trace"]}`, parameter set `{report["parameters"]}`, emaprog {report["emaprog_version"]}.
 
 ## Health
 
@@ -244,9 +291,9 @@ Trace `{report['trace']}`, parameter set `{report['parameters']}`, emaprog {repo
 
 {_phase_sentence(report)}
 
-Fit quality: fitness {report['fitness']:.3e} is {floor['ratio']:.2f} x the recording's noise
-floor ({floor['fitness']:.3e}); {'explained' if floor['explained'] else 'NOT explained'}
-({floor['rule']}). Intervals: {confidence['method']}.
+Fit quality: fitness {report["fitness"]:.3e} is {floor["ratio"]:.2f} x the recording's noise
+floor ({floor["fitness"]:.3e}); {"explained" if floor["explained"] else "NOT explained"}
+({floor["rule"]}). Intervals: {confidence["method"]}.
 
 ## Estimates
 
@@ -254,11 +301,11 @@ floor ({floor['fitness']:.3e}); {'explained' if floor['explained'] else 'NOT exp
 {rule}
 {chr(10).join(rows)}
 {operating}{load_line}
-Fitness {report['fitness']:.4e} (GA best {ga['fitness']:.4e}; refined: {ga['refined']}).
-{ga['generations']} generations (stopped by {ga['stopped_by']}), {report['evaluations']} Monitor
-Model runs, {report['elapsed_s']:.2f} s, GA seed {report['seed']}.
+Fitness {report["fitness"]:.4e} (GA best {ga["fitness"]:.4e}; refined: {ga["refined"]}).
+{ga["generations"]} generations (stopped by {ga["stopped_by"]}), {report["evaluations"]} Monitor
+Model runs, {report["elapsed_s"]:.2f} s, GA seed {report["seed"]}.
 
-Nominal-discrepancy correction: {report['correction']['applied']} ({report['correction']['note']}).
+Nominal-discrepancy correction: {report["correction"]["applied"]} ({report["correction"]["note"]}).
 
 ## Figures
 
@@ -274,8 +321,12 @@ def plot_calibration(result: dict, path: str | Path) -> Path:
     fig, ax = plt.subplots(figsize=(6, 4))
     ax.plot(zeta, result["optimal_z"], "o", label="optimal Z (Monitor vs Reference)")
     line = np.linspace(0.0, zeta.max(), 50)
-    ax.plot(line, result["eccentricity_gain"] * line, "-",
-            label=f"Z = {result['eccentricity_gain']:.3f} zeta (r² = {result['r_squared']:.4f})")
+    ax.plot(
+        line,
+        result["eccentricity_gain"] * line,
+        "-",
+        label=f"Z = {result['eccentricity_gain']:.3f} zeta (r² = {result['r_squared']:.4f})",
+    )
     ax.set_xlabel("Reference eccentricity zeta [-]")
     ax.set_ylabel("Monitor shape amplitude Z [-]")
     ax.grid(True, alpha=0.3)
@@ -294,7 +345,10 @@ def plot_parity(frame, path: str | Path) -> Path:
     fig, axes = plt.subplots(2, 4, figsize=(14, 6.5))
     healthy = frame["healthy_case"].to_numpy(bool)
     for ax, (quantity, label) in zip(axes.flat, QUANTITY_LABELS.items()):
-        true, est = frame[f"true_{quantity}"].to_numpy(float), frame[f"est_{quantity}"].to_numpy(float)
+        true, est = (
+            frame[f"true_{quantity}"].to_numpy(float),
+            frame[f"est_{quantity}"].to_numpy(float),
+        )
         ax.plot(true[~healthy], est[~healthy], "o", ms=3.5, alpha=0.7, label="faulty cases")
         ax.plot(true[healthy], est[healthy], "x", ms=4, color="tab:green", label="healthy cases")
         lo = float(min(true.min(initial=0.0), est.min(initial=0.0)))
@@ -313,8 +367,9 @@ def plot_parity(frame, path: str | Path) -> Path:
     return Path(path)
 
 
-def plot_error_histograms(errors: dict[str, np.ndarray], tolerances: dict[str, float | None],
-                          path: str | Path) -> Path:
+def plot_error_histograms(
+    errors: dict[str, np.ndarray], tolerances: dict[str, float | None], path: str | Path
+) -> Path:
     """Histogram of each quantity's error with its tolerance band."""
     fig, axes = plt.subplots(2, 4, figsize=(14, 6.5))
     for ax, (quantity, values) in zip(axes.flat, errors.items()):
@@ -324,9 +379,11 @@ def plot_error_histograms(errors: dict[str, np.ndarray], tolerances: dict[str, f
         if bar is not None:
             for x in (-bar, bar):
                 ax.axvline(x, color="tab:red", ls="--", lw=0.9)
-        ax.set_title(QUANTITY_LABELS[quantity].replace("[-]", "error").replace("[rad]", "error [rad]")
-                     + (" (rel.)" if QUANTITIES[quantity].measure == "relative" else ""),
-                     fontsize=9)
+        ax.set_title(
+            QUANTITY_LABELS[quantity].replace("[-]", "error").replace("[rad]", "error [rad]")
+            + (" (rel.)" if QUANTITIES[quantity].measure == "relative" else ""),
+            fontsize=9,
+        )
         ax.set_ylabel("cases", fontsize=8)
         ax.tick_params(labelsize=7)
         ax.grid(True, alpha=0.3)
@@ -355,21 +412,31 @@ def plot_trend(result: dict, path: str | Path) -> Path:
         end = max(end, usage[-1] + 0.1 * max(np.ptp(usage), 1.0))
         grid = np.linspace(usage[0], end, 200)
         if entry["law"] is not None:
-            ax.plot(grid, growth(entry["law"], grid, entry["a"], entry["b"]), "--",
-                    label=f"{entry['law']} fit")
+            ax.plot(
+                grid,
+                growth(entry["law"], grid, entry["a"], entry["b"]),
+                "--",
+                label=f"{entry['law']} fit",
+            )
         ax.axhline(entry["threshold"], color="tab:red", lw=1, label="failure threshold")
         ax.axhline(entry["incipient"], color="tab:orange", lw=0.8, ls=":", label="incipient")
         if rul["low"] is not None:
             high = usage[-1] + (rul["high"] if rul["high"] is not None else end - usage[-1])
-            ax.axvspan(usage[-1] + rul["low"], high, color="tab:red", alpha=0.12,
-                       label="90 % RUL interval")
+            ax.axvspan(
+                usage[-1] + rul["low"], high, color="tab:red", alpha=0.12, label="90 % RUL interval"
+            )
         if rul["median"] is not None:
             ax.axvline(usage[-1] + rul["median"], color="tab:red", ls="--", lw=0.8)
         metrics = entry["metrics"]
         if metrics and metrics["true_failure_at"] is not None:
             ax.axvline(metrics["true_failure_at"], color="k", lw=0.8, label="true failure")
-        median = (entry["status"] if entry["status"] in ("not detected", "insufficient history") else
-                  "RUL beyond horizon" if rul["median"] is None else f"RUL {rul['median']:.0f} h")
+        median = (
+            entry["status"]
+            if entry["status"] in ("not detected", "insufficient history")
+            else "RUL beyond horizon"
+            if rul["median"] is None
+            else f"RUL {rul['median']:.0f} h"
+        )
         ax.set_title(f"{SEVERITY_LABELS[fault]}: {median}", fontsize=9)
         ax.set_xlabel("usage [flight hours]", fontsize=8)
         ax.tick_params(labelsize=7)
@@ -386,22 +453,29 @@ def plot_trend(result: dict, path: str | Path) -> Path:
 
 def trend_markdown(result: dict) -> str:
     """trend.md: the RUL table and, for synthetic histories, the prognostic metrics."""
+
     def hours(x):
         return "beyond horizon" if x is None else f"{x:.0f}"
 
     rows, metric_rows = [], []
     for fault, e in result["faults"].items():
         if e["status"] == "not detected":
-            rows.append(f"| {fault} | — | {e['severity'][-1]:.4g} | {e['threshold']:.4g} | never | "
-                        "not detected | — |")
+            rows.append(
+                f"| {fault} | — | {e['severity'][-1]:.4g} | {e['threshold']:.4g} | never | "
+                "not detected | — |"
+            )
             continue
         if e["status"] == "insufficient history":
-            rows.append(f"| {fault} | — | {e['severity'][-1]:.4g} | {e['threshold']:.4g} | "
-                        f"{hours(e['detected_at'])} | insufficient history | — |")
+            rows.append(
+                f"| {fault} | — | {e['severity'][-1]:.4g} | {e['threshold']:.4g} | "
+                f"{hours(e['detected_at'])} | insufficient history | — |"
+            )
             continue
-        rows.append(f"| {fault} | {e['law']} | {e['severity'][-1]:.4g} | {e['threshold']:.4g} | "
-                    f"{hours(e['detected_at'])} | {hours(e['rul']['median'])} | "
-                    f"{hours(e['rul']['low'])} – {hours(e['rul']['high'])} |")
+        rows.append(
+            f"| {fault} | {e['law']} | {e['severity'][-1]:.4g} | {e['threshold']:.4g} | "
+            f"{hours(e['detected_at'])} | {hours(e['rul']['median'])} | "
+            f"{hours(e['rul']['low'])} – {hours(e['rul']['high'])} |"
+        )
         m = e["metrics"]
         if m is not None:
             metric_rows.append(
@@ -409,14 +483,15 @@ def trend_markdown(result: dict) -> str:
                 f"{_fmt(m['relative_accuracy'], '{:.2f}')} | "
                 f"{_fmt(m['mean_relative_accuracy'], '{:.2f}')} | "
                 f"{_fmt(m['alpha_lambda_share'], '{:.0%}')} | "
-                f"{_fmt(m['prognostic_horizon'], '{:.0f}')} |")
+                f"{_fmt(m['prognostic_horizon'], '{:.0f}')} |"
+            )
     metrics = ""
     if metric_rows:
         metrics = f"""
 ## Against the truth (synthetic history)
 
 Relative accuracy RA = 1 - |RUL_true - RUL| / RUL_true; alpha-lambda: share of the
-predictions (one after each inspection since the detection) within +/- {result['settings']['alpha']:.0%} of the
+predictions (one after each inspection since the detection) within +/- {result["settings"]["alpha"]:.0%} of the
 true RUL; prognostic horizon: true time to failure left when the predictions enter that
 cone for good.
 
@@ -424,14 +499,14 @@ cone for good.
 |---|---|---|---|---|---|---|
 {chr(10).join(metric_rows)}
 """
-    return f"""# Degradation trend: {result['actuator']}
+    return f"""# Degradation trend: {result["actuator"]}
 
-{result['inspections']} inspections from {result['usage'][0]:.0f} to {result['usage'][-1]:.0f}
-flight hours (`{result['source']}`), parameter set `{result['parameters']}`, emaprog
-{result['emaprog_version']}. Growth law per fault: {result['settings']['law']}
+{result["inspections"]} inspections from {result["usage"][0]:.0f} to {result["usage"][-1]:.0f}
+flight hours (`{result["source"]}`), parameter set `{result["parameters"]}`, emaprog
+{result["emaprog_version"]}. Growth law per fault: {result["settings"]["law"]}
 (linear or exponential, least squares; "auto" takes the lower AIC); RUL to the
 failure threshold from the last inspection, median and 90 % interval of a
-{result['settings']['bootstrap']}-replicate bootstrap whose errors are never smaller than
+{result["settings"]["bootstrap"]}-replicate bootstrap whose errors are never smaller than
 the identification's own accuracy. A fault whose estimate never reached its
 incipient threshold is not extrapolated.
 

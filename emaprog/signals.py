@@ -80,7 +80,7 @@ def noise_sigma(x: np.ndarray, lsb: float) -> float:
         return lsb / math.sqrt(12.0)
     d2 = x[2:] - 2.0 * x[1:-1] + x[:-2]
     sigma = 1.4826 * float(np.median(np.abs(d2))) / math.sqrt(6.0)
-    return math.sqrt(sigma ** 2 + lsb ** 2 / 12.0)
+    return math.sqrt(sigma**2 + lsb**2 / 12.0)
 
 
 def command_start(time: np.ndarray, command: np.ndarray) -> float:

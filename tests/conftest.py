@@ -42,8 +42,11 @@ def reference_run(name: str, faults=None, noise: bool = False):
 def monitor_run(name: str, faults=None):
     sc = scenario(name)
     p = parameters.load("default")
-    f = (monitor_form(flatten(sc.faults), p.spec.monitor.eccentricity_gain) if faults is None
-         else faults)
+    f = (
+        monitor_form(flatten(sc.faults), p.spec.monitor.eccentricity_gain)
+        if faults is None
+        else faults
+    )
     return monitor.run(p, inputs(sc, p), f)
 
 
@@ -56,11 +59,20 @@ def low_pass(x: np.ndarray, width: int = 10) -> np.ndarray:
 def nrmse(model: np.ndarray, truth: np.ndarray, skip: int = 100) -> float:
     """RMS error over RMS of the truth, start-up samples left out [-]."""
     m, t = model[skip:], truth[skip:]
-    return float(np.sqrt(np.mean((m - t) ** 2)) / np.sqrt(np.mean(t ** 2)))
+    return float(np.sqrt(np.mean((m - t) ** 2)) / np.sqrt(np.mean(t**2)))
 
 
 #: The healthy Monitor (Z = 0).
 MONITOR_HEALTHY = MonitorFaults(*HEALTHY)
 
-__all__ = ["CONFIGS", "HEALTHY", "MONITOR_HEALTHY", "ROOT", "low_pass", "monitor_run", "nrmse", "reference_run",
-           "scenario"]
+__all__ = [
+    "CONFIGS",
+    "HEALTHY",
+    "MONITOR_HEALTHY",
+    "ROOT",
+    "low_pass",
+    "monitor_run",
+    "nrmse",
+    "reference_run",
+    "scenario",
+]

@@ -23,8 +23,9 @@ def _on_path():
     sys.path.remove(str(BENCHMARKS))
 
 
-@pytest.mark.parametrize("script", sorted(p.stem for p in BENCHMARKS.glob("*.py")
-                                          if not p.stem.startswith("_")))
+@pytest.mark.parametrize(
+    "script", sorted(p.stem for p in BENCHMARKS.glob("*.py") if not p.stem.startswith("_"))
+)
 def test_every_benchmark_script_imports_and_has_a_main(script):
     module = importlib.import_module(script)
     assert callable(module.main)
@@ -56,25 +57,32 @@ def test_calibration_recovers_the_law_the_errors_were_drawn_with():
     n = 4000
     sigma = rng.uniform(0.002, 0.01, n)
     true = np.where(np.arange(n) % 2 == 0, 1.0, rng.uniform(1.2, 3.0, n))
-    incipient = {"friction": 0.15, "backlash": 1e-4, "short_circuit": 0.05,
-                 "eccentricity": 0.05}
+    incipient = {"friction": 0.15, "backlash": 1e-4, "short_circuit": 0.05, "eccentricity": 0.05}
     frame = pd.DataFrame({f"est_{q}": np.full(n, v.healthy) for q, v in QUANTITIES.items()})
     frame["est_backlash"] = rng.uniform(0.0, 1e-3, n)
     load = fault_load({**{q: frame[f"est_{q}"] for q in QUANTITIES}, "friction": true}, incipient)
     frame = frame.assign(
-        true_friction=true, sigma_friction=sigma,
-        est_friction=true + rng.normal(0.0, np.sqrt((2.0 * sigma) ** 2 + (
-            0.05 * np.abs(true - 1.0)) ** 2 + (0.001 * load) ** 2)),
-        true_eccentricity_zeta=0.3, true_eccentricity_phase=6.2,
+        true_friction=true,
+        sigma_friction=sigma,
+        est_friction=true
+        + rng.normal(
+            0.0,
+            np.sqrt((2.0 * sigma) ** 2 + (0.05 * np.abs(true - 1.0)) ** 2 + (0.001 * load) ** 2),
+        ),
+        true_eccentricity_zeta=0.3,
+        true_eccentricity_phase=6.2,
         est_eccentricity_phase=np.mod(6.2 + rng.normal(0.0, 2.0 * sigma), 2.0 * math.pi),
-        sigma_eccentricity_phase=sigma)
+        sigma_eccentricity_phase=sigma,
+    )
     factors = np.round(np.geomspace(1.0, 4.0, 29), 3)
     shares, loads = [0.0, 0.025, 0.0375, 0.05, 0.0625, 0.075], [0.0, 0.0005, 0.001, 0.002]
-    factor, share, coefficient = fit(Cases(frame, "friction", incipient, twin=True),
-                                     factors, shares, loads)
+    factor, share, coefficient = fit(
+        Cases(frame, "friction", incipient, twin=True), factors, shares, loads
+    )
     assert factor == pytest.approx(2.0, rel=0.08) and share == 0.05 and coefficient == 0.001
-    factor, share, coefficient = fit(Cases(frame, "eccentricity_phase", incipient, twin=True),
-                                     factors, shares, loads)
+    factor, share, coefficient = fit(
+        Cases(frame, "eccentricity_phase", incipient, twin=True), factors, shares, loads
+    )
     assert factor == pytest.approx(2.0, rel=0.08) and share == 0.0 and coefficient == 0.0
     frame["true_eccentricity_zeta"] = 0.01
     assert Cases(frame, "eccentricity_phase", incipient, twin=True).error.size == 0
@@ -91,8 +99,9 @@ def test_commission_floor_recovers_the_model_error_the_errors_were_drawn_with():
     rng = np.random.default_rng(5)
     se = rng.uniform(0.002, 0.01, 4000)
     err = rng.normal(0.0, np.hypot(se, 0.03))
-    frame = pd.DataFrame({"commission_err_back_emf_constant": err,
-                          "commission_se_back_emf_constant": se})
+    frame = pd.DataFrame(
+        {"commission_err_back_emf_constant": err, "commission_se_back_emf_constant": se}
+    )
     for name in commission_errors.PARAMETERS:
         for column in (f"commission_err_{name}", f"commission_se_{name}"):
             if column not in frame:

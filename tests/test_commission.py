@@ -18,9 +18,17 @@ from emaprog.models import reference
 from .conftest import CONFIGS
 
 #: A unit off the shipped set by ordinary build tolerances (docs/reference.md, Campaign YAML), and its hinge moment.
-UNIT = {"motor_inertia": 1.08, "surface_inertia": 0.92, "motor_viscous": 1.25,
-        "static_friction": 1.10, "dynamic_friction": 1.05, "phase_resistance": 1.10,
-        "back_emf_constant": 0.98, "phase_inductance": 0.95, "transmission_stiffness": 0.85}
+UNIT = {
+    "motor_inertia": 1.08,
+    "surface_inertia": 0.92,
+    "motor_viscous": 1.25,
+    "static_friction": 1.10,
+    "dynamic_friction": 1.05,
+    "phase_resistance": 1.10,
+    "back_emf_constant": 0.98,
+    "phase_inductance": 0.95,
+    "transmission_stiffness": 0.85,
+}
 HINGE = 60.0  # [N m]
 ELECTRICAL = ("phase_resistance", "back_emf_constant", "phase_inductance")
 
@@ -35,13 +43,14 @@ def unit_parameters():
 
 def healthy_recording(path, noise: bool = False, **update):
     scenario = load_scenario(CONFIGS / "chirp-nominal.yaml").model_copy(
-        update={"load": ConstantLoad(kind="constant", torque=HINGE), **update})
+        update={"load": ConstantLoad(kind="constant", torque=HINGE), **update}
+    )
     return write_trace(path, reference.simulate(scenario, unit_parameters(), with_noise=noise))
 
 
 def rigid_inertia(values: dict) -> float:
     """Motor plus reflected surface inertia [kg m^2]: what a rigid actuator shows."""
-    return values["motor_inertia"] + values["surface_inertia"] / 180.0 ** 2
+    return values["motor_inertia"] + values["surface_inertia"] / 180.0**2
 
 
 def test_commissioning_recovers_a_perturbed_unit(tmp_path):
@@ -82,31 +91,49 @@ def test_commissioning_recovers_a_perturbed_unit(tmp_path):
         assert name not in fitted
         if name == "static_friction":
             assert values[name] / values["dynamic_friction"] == pytest.approx(
-                base.mechanical.static_friction / base.mechanical.dynamic_friction, rel=1e-12)
+                base.mechanical.static_friction / base.mechanical.dynamic_friction, rel=1e-12
+            )
         else:
-            assert values[name] == base.model_dump()[
-                "electrical" if name in ELECTRICAL else "mechanical"][name]
+            assert (
+                values[name]
+                == base.model_dump()["electrical" if name in ELECTRICAL else "mechanical"][name]
+            )
     assert set(fitted) | held == set(UNIT)
     assert all(f.standard_error > 0 for f in fitted.values())
     assert len(unit.spec.commissioning.recordings[0].sha256) == 64
     assert "commissioned on" in unit.spec.changes[-1]
     # the unit set is usable wherever a set is: the Monitor simulates with it
-    result = CliRunner().invoke(app, ["simulate", str(CONFIGS / "chirp-nominal.yaml"), "--model",
-                                      "monitor", "-p", str(out), "-o", str(tmp_path / "m.parquet")])
+    result = CliRunner().invoke(
+        app,
+        [
+            "simulate",
+            str(CONFIGS / "chirp-nominal.yaml"),
+            "--model",
+            "monitor",
+            "-p",
+            str(out),
+            "-o",
+            str(tmp_path / "m.parquet"),
+        ],
+    )
     assert result.exit_code == 0, result.output
 
 
-@pytest.mark.parametrize("case,fragment", [
-    ("at rest", "barely moves"),
-    ("too short", "at least 0.2 s"),
-    ("not this actuator", "still misses"),
-])
+@pytest.mark.parametrize(
+    "case,fragment",
+    [
+        ("at rest", "barely moves"),
+        ("too short", "at least 0.2 s"),
+        ("not this actuator", "still misses"),
+    ],
+)
 def test_recordings_that_cannot_commission_exit_2_and_write_nothing(tmp_path, case, fragment):
     if case == "at rest":
         from emaprog.config.scenario import ConstantCommand
 
-        path = healthy_recording(tmp_path / "rest.parquet",
-                                 command=ConstantCommand(kind="constant", offset=0.0))
+        path = healthy_recording(
+            tmp_path / "rest.parquet", command=ConstantCommand(kind="constant", offset=0.0)
+        )
     elif case == "too short":
         path = healthy_recording(tmp_path / "short.parquet", duration=0.1)
     else:  # a current channel twice too large: no plausible unit explains it
@@ -117,8 +144,9 @@ def test_recordings_that_cannot_commission_exit_2_and_write_nothing(tmp_path, ca
         current = table.column("current").to_numpy() * 2.0
         import pyarrow as pa
 
-        table = table.set_column(table.column_names.index("current"), table.schema.field("current"),
-                                 pa.array(current))
+        table = table.set_column(
+            table.column_names.index("current"), table.schema.field("current"), pa.array(current)
+        )
         pq.write_table(table, path)
     out = tmp_path / "unit.yaml"
     result = CliRunner().invoke(app, ["commission", str(path), "-o", str(out)])
@@ -142,16 +170,28 @@ def test_identification_against_the_unit_can_use_its_commissioning_recording(tmp
     unit = tmp_path / "unit.yaml"
     assert CliRunner().invoke(app, ["commission", str(healthy), "-o", str(unit)]).exit_code == 0
     faults = load_scenario(CONFIGS / "short-circuit.yaml").faults
-    inspection = healthy_recording(tmp_path / "inspection.parquet", noise=True, faults=faults,
-                                   seed=99)
+    inspection = healthy_recording(
+        tmp_path / "inspection.parquet", noise=True, faults=faults, seed=99
+    )
     settings = load_scenario(CONFIGS / "chirp-nominal.yaml").model_dump(mode="json")
     settings["identify"].update(nominal_correction="recording", nuisances=["hinge_moment"])
     scenario = tmp_path / "inspection.yaml"
     scenario.write_text(yaml.safe_dump(settings))
 
     def identify(folder: str) -> dict:
-        result = CliRunner().invoke(app, ["identify", str(inspection), "--scenario", str(scenario),
-                                          "--parameters", str(unit), "-o", str(tmp_path / folder)])
+        result = CliRunner().invoke(
+            app,
+            [
+                "identify",
+                str(inspection),
+                "--scenario",
+                str(scenario),
+                "--parameters",
+                str(unit),
+                "-o",
+                str(tmp_path / folder),
+            ],
+        )
         assert result.exit_code == 0, result.output
         return json.loads((tmp_path / folder / "report.json").read_text())
 

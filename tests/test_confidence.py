@@ -81,27 +81,42 @@ def test_a_parameter_that_changes_nothing_gets_infinite_variance():
 def _trace(command: np.ndarray, rate: float = 1e4) -> Trace:
     n = command.size
     time = np.arange(n) / rate
-    return Trace({"time": time, "command": command, "position": command, "speed": np.zeros(n),
-                  "current": np.zeros(n)}, {})
+    return Trace(
+        {
+            "time": time,
+            "command": command,
+            "position": command,
+            "speed": np.zeros(n),
+            "current": np.zeros(n),
+        },
+        {},
+    )
 
 
 def test_twin_factors_only_for_the_reference_run_with_the_very_same_values(params):
     """A Reference trace identified with the set that made it is a twin experiment; the
     same trace against a unit 5 % off in inertia, or a rig recording's metadata, is not,
     and gets the (wider, for friction) unit factors."""
-    sc = Scenario.model_validate({**load_scenario(CONFIGS / "chirp-nominal.yaml").model_dump(),
-                                  "duration": 0.05})
+    sc = Scenario.model_validate(
+        {**load_scenario(CONFIGS / "chirp-nominal.yaml").model_dump(), "duration": 0.05}
+    )
     trace = reference.simulate(sc, params)
     assert is_twin(trace, params)
     other = parameters.scaled(params, {"motor_inertia": 1.05}, "a unit off the set")
     assert not is_twin(trace, other)
     rig = Trace(trace.columns, {**trace.metadata, "model": "recording"})
     assert not is_twin(rig, params) and not is_twin(Trace(trace.columns, None), params)
-    assert quantity_error("friction", "twin").factor < quantity_error("friction").factor \
+    assert (
+        quantity_error("friction", "twin").factor
+        < quantity_error("friction").factor
         < quantity_error("friction", "shipped").factor
+    )
     # a nuisance has one law, whatever the basis
-    assert quantity_error("hinge_moment") == quantity_error("hinge_moment", "twin") \
+    assert (
+        quantity_error("hinge_moment")
+        == quantity_error("hinge_moment", "twin")
         == quantity_error("hinge_moment", "shipped")
+    )
 
 
 def test_zeta_interval_of_a_healthy_rotor_covers_zero_90_percent_of_the_time():
@@ -117,9 +132,11 @@ def test_zeta_interval_of_a_healthy_rotor_covers_zero_90_percent_of_the_time():
     assert np.mean((low <= 0.0) & (high >= 0.0)) == pytest.approx(0.90, abs=0.01)
     assert np.mean(zeta <= 1.645 * sigma) == pytest.approx(0.742, abs=0.01)
     assert quantity_interval("eccentricity_zeta", 0.2, sigma) == pytest.approx(
-        (0.2 - 1.645 * sigma, 0.2 + 1.645 * sigma), rel=1e-4)
+        (0.2 - 1.645 * sigma, 0.2 + 1.645 * sigma), rel=1e-4
+    )
     assert quantity_interval("short_circuit_a", 0.004, sigma) == pytest.approx(
-        (0.0, 0.004 + 1.6448536 * sigma))
+        (0.0, 0.004 + 1.6448536 * sigma)
+    )
 
 
 def test_model_error_law_adds_the_signature_share_in_quadrature():
@@ -143,9 +160,13 @@ def test_fault_load_counts_each_fault_in_incipient_thresholds():
     health = parameters.load("default").spec.health
     incipient = {f.name: getattr(health, f.name).incipient for f in CATALOGUE}
     assert fault_load(healthy_values(), incipient) == 0.0
-    values = {**healthy_values(), "friction": 1.0 - incipient["friction"],
-              "short_circuit_b": 2.0 * incipient["short_circuit"],
-              "short_circuit_c": incipient["short_circuit"], "eccentricity_phase": 3.0}
+    values = {
+        **healthy_values(),
+        "friction": 1.0 - incipient["friction"],
+        "short_circuit_b": 2.0 * incipient["short_circuit"],
+        "short_circuit_c": incipient["short_circuit"],
+        "eccentricity_phase": 3.0,
+    }
     assert fault_load(values, incipient) == pytest.approx(3.0)
     arrays = {k: np.array([v, healthy_values()[k]]) for k, v in values.items()}
     assert fault_load(arrays, incipient) == pytest.approx([3.0, 0.0])
@@ -165,10 +186,13 @@ def test_recording_correction_needs_the_same_command_on_the_same_grid():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("command", [
-    {"kind": "constant", "offset": 0.0},  # the actuator at rest
-    {"kind": "chirp", "amplitude": 2.0e-5, "start_frequency": 0.5, "end_frequency": 10.0},
-])
+@pytest.mark.parametrize(
+    "command",
+    [
+        {"kind": "constant", "offset": 0.0},  # the actuator at rest
+        {"kind": "chirp", "amplitude": 2.0e-5, "start_frequency": 0.5, "end_frequency": 10.0},
+    ],
+)
 def test_a_recording_that_cannot_tell_is_inconclusive_for_every_fault(tmp_path, command):
     """At rest (command 0, current ~ 0) or a command too small to move the motor past its
     friction (2e-5 rad): exit 0, every verdict `inconclusive` with its reason, no fault
@@ -176,7 +200,9 @@ def test_a_recording_that_cannot_tell_is_inconclusive_for_every_fault(tmp_path, 
     data = load_scenario(CONFIGS / "fig10-multiple-faults.yaml").model_dump(mode="json")
     data.update(name="cannot-tell", command=command)
     trace = tmp_path / "trace.parquet"
-    write_trace(trace, reference.simulate(Scenario.model_validate(data), parameters.load("default")))
+    write_trace(
+        trace, reference.simulate(Scenario.model_validate(data), parameters.load("default"))
+    )
     result = CliRunner().invoke(app, ["identify", str(trace), "-o", str(tmp_path / "r")])
     assert result.exit_code == 0, result.output
     report = json.loads((tmp_path / "r" / "report.json").read_text())

@@ -17,6 +17,7 @@ from emaprog.identification.ga import GAOptions, minimize
 def sphere(target):
     def f(genes):
         return np.sum((genes - target) ** 2, axis=1)
+
     return f
 
 
@@ -26,8 +27,9 @@ STRATEGIES = pytest.mark.parametrize("strategy", ["numpy", "deap"])
 @STRATEGIES
 def test_finds_an_interior_minimum(strategy):
     target = np.array([0.3, 0.7, 0.55, 0.1])
-    result = minimize(sphere(target), 4, GAOptions(population=48, generations=60,
-                                                   strategy=strategy), seed=3)
+    result = minimize(
+        sphere(target), 4, GAOptions(population=48, generations=60, strategy=strategy), seed=3
+    )
     assert np.max(np.abs(result.best - target)) < 0.02
     assert result.fitness < 1e-3
 
@@ -48,23 +50,28 @@ def test_minimum_on_the_bound_is_reached_and_never_left(strategy):
 
 def test_circular_gene_wraps_across_zero():
     """Minimum at 0.98 on a circle: reachable from either side, genes stay in [0, 1)."""
+
     def f(genes):
         d = (genes[:, 0] - 0.98 + 0.5) % 1.0 - 0.5
-        return d ** 2 + (genes[:, 1] - 0.5) ** 2
+        return d**2 + (genes[:, 1] - 0.5) ** 2
 
-    result = minimize(f, 2, GAOptions(population=32, generations=40), seed=5, circular=[True, False])
+    result = minimize(
+        f, 2, GAOptions(population=32, generations=40), seed=5, circular=[True, False]
+    )
     assert abs((result.best[0] - 0.98 + 0.5) % 1.0 - 0.5) < 0.01
 
 
 @STRATEGIES
 def test_rastrigin_global_minimum(strategy):
     """Multimodal: the global minimum at the box centre among 100 local ones."""
+
     def f(genes):
         x = 10.24 * genes - 5.12
-        return 10 * x.shape[1] + np.sum(x ** 2 - 10 * np.cos(2 * np.pi * x), axis=1)
+        return 10 * x.shape[1] + np.sum(x**2 - 10 * np.cos(2 * np.pi * x), axis=1)
 
-    result = minimize(f, 2, GAOptions(population=80, generations=80, patience=40,
-                                      strategy=strategy), seed=2)
+    result = minimize(
+        f, 2, GAOptions(population=80, generations=80, patience=40, strategy=strategy), seed=2
+    )
     assert result.fitness < 0.1
 
 
@@ -98,8 +105,9 @@ def test_deap_strategy_leaves_the_global_random_state_and_counts_its_runs():
 
 
 def test_stagnation_stops_early_and_logbook_is_monotone():
-    result = minimize(lambda g: np.zeros(len(g)), 3, GAOptions(population=8, generations=100,
-                                                                patience=5), seed=0)
+    result = minimize(
+        lambda g: np.zeros(len(g)), 3, GAOptions(population=8, generations=100, patience=5), seed=0
+    )
     assert result.stopped_by == "stagnation" and result.generations == 5
     best = [r["best"] for r in result.logbook]
     assert all(b1 <= b0 for b0, b1 in zip(best, best[1:]))
@@ -142,12 +150,17 @@ def test_both_polishes_bring_a_perturbed_estimate_within_spec(params, method):
     scenario = load_scenario(CONFIGS / "fig10-multiple-faults.yaml")
     trace = reference.simulate(scenario, params)
     inp = inputs(scenario, params)
-    objective = Objective(trace, inp, params, scenario.identify,
-                          correction=reference_correction(inp, params))
+    objective = Objective(
+        trace, inp, params, scenario.identify, correction=reference_correction(inp, params)
+    )
     truth = flatten(scenario.faults)
-    moved = {**truth, "friction": 1.08 * truth["friction"], "backlash": truth["backlash"] + 1e-4,
-             "short_circuit_a": truth["short_circuit_a"] - 0.06,
-             "eccentricity_zeta": truth["eccentricity_zeta"] + 0.08}
+    moved = {
+        **truth,
+        "friction": 1.08 * truth["friction"],
+        "backlash": truth["backlash"] + 1e-4,
+        "short_circuit_a": truth["short_circuit_a"] - 0.06,
+        "eccentricity_zeta": truth["eccentricity_zeta"] + 0.08,
+    }
     start = objective.genes_for(moved)
     start_fitness = float(objective(start[None])[0])
     before = objective.evaluations

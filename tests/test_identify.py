@@ -46,7 +46,9 @@ def test_healthy_trace_is_all_nominal(workdir):
 def test_friction_recovered(workdir):
     report = twin("friction", workdir)
     assert abs(report["error"]["friction"]) / report["truth"]["friction"] < 0.05
-    assert report["health"]["short_circuit"] == "nominal" and report["health"]["backlash"] == "nominal"
+    assert (
+        report["health"]["short_circuit"] == "nominal" and report["health"]["backlash"] == "nominal"
+    )
 
 
 def test_backlash_recovered(workdir):
@@ -84,8 +86,14 @@ def test_fig10_combination(workdir):
     assert set(report["health"].values()) <= {"incipient", "degraded"}
 
 
-TWINS = ("chirp-nominal", "friction", "backlash", "short-circuit", "eccentricity",
-         "fig10-multiple-faults")
+TWINS = (
+    "chirp-nominal",
+    "friction",
+    "backlash",
+    "short-circuit",
+    "eccentricity",
+    "fig10-multiple-faults",
+)
 
 
 def test_intervals_hold_the_twins_truth(workdir):
@@ -103,8 +111,11 @@ def test_intervals_hold_the_twins_truth(workdir):
         for fault, value in report["interval"].items():
             items = value.items() if isinstance(value, dict) else [(None, value)]
             for key, (low, high) in items:
-                q = next(q for q in QUANTITIES.values()
-                         if q.name == fault or (q.key == key and q.name.startswith(fault)))
+                q = next(
+                    q
+                    for q in QUANTITIES.values()
+                    if q.name == fault or (q.key == key and q.name.startswith(fault))
+                )
                 if q.circular:
                     if truth["eccentricity_zeta"] < 0.08:
                         continue  # the angle of an absent eccentricity is not defined
@@ -123,8 +134,12 @@ def test_intervals_hold_the_twins_truth(workdir):
 def test_cli_demo_writes_the_report_and_is_reproducible(tmp_path):
     runner = CliRunner()
     trace = tmp_path / "t.parquet"
-    assert runner.invoke(app, ["simulate", str(CONFIGS / "backlash.yaml"), "-o", str(trace),
-                               "--plot"]).exit_code == 0
+    assert (
+        runner.invoke(
+            app, ["simulate", str(CONFIGS / "backlash.yaml"), "-o", str(trace), "--plot"]
+        ).exit_code
+        == 0
+    )
     assert trace.with_suffix(".png").stat().st_size > 10_000
     outputs = []
     for run in ("one", "two"):
@@ -132,8 +147,18 @@ def test_cli_demo_writes_the_report_and_is_reproducible(tmp_path):
         assert result.exit_code == 0, result.output
         assert "health:" in result.output and "backlash" in result.output
         report = json.loads((tmp_path / run / "report.json").read_text())
-        for key in ("estimate", "truth", "error", "health", "fitness", "evaluations", "elapsed_s",
-                    "seed", "settings", "emaprog_version"):
+        for key in (
+            "estimate",
+            "truth",
+            "error",
+            "health",
+            "fitness",
+            "evaluations",
+            "elapsed_s",
+            "seed",
+            "settings",
+            "emaprog_version",
+        ):
             assert key in report
         for figure in ("fit.png", "convergence.png", "report.md"):
             assert (tmp_path / run / figure).stat().st_size > 1000
@@ -158,8 +183,10 @@ def test_unknown_hinge_moment_is_estimated_as_a_nuisance(tmp_path):
     loaded = scenario.model_copy(update={"load": ConstantLoad(kind="constant", torque=60.0)})
     frame = api.simulate(loaded)
     frame.attrs["emaprog"]["scenario"]["load"] = {"kind": "none"}  # the user does not know it
-    frame.attrs["emaprog"]["scenario"]["identify"]["nuisances"] = ["hinge_moment",
-                                                                   "resistance_factor"]
+    frame.attrs["emaprog"]["scenario"]["identify"]["nuisances"] = [
+        "hinge_moment",
+        "resistance_factor",
+    ]
     report = api.identify(frame)
     assert abs(report.data["nuisance"]["hinge_moment"] - 60.0) < 2.0
     low, high = report.data["nuisance_interval"]["hinge_moment"]

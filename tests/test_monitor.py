@@ -91,17 +91,37 @@ def test_outgoing_phase_freewheels_at_the_closed_form_rate(s6):
     assert sector(theta_e) == s6
     sign = 1.0 if POSITIVE_PHASE[(s6 - 1) % 6] == IDLE_PHASE[s6] else -1.0
     outgoing, dt = sign * 2.0 * held, 1e-7
-    pair, after, _, measured = commutation_step(held, outgoing, held, s6, theta_e, omega,
-                                                np.full(3, k), np.zeros(3), np.full(3, inductance),
-                                                vdc, dt)
+    pair, after, _, measured = commutation_step(
+        held,
+        outgoing,
+        held,
+        s6,
+        theta_e,
+        omega,
+        np.full(3, k),
+        np.zeros(3),
+        np.full(3, inductance),
+        vdc,
+        dt,
+    )
     assert pair == pytest.approx(held, abs=1e-9)  # the regulator holds the pair current
     rate = (after - outgoing) / dt
     assert rate == pytest.approx(-sign * (vdc + 2 * k * omega) / (3 * inductance), rel=1e-6)
     # (|i_p| + |i_q| + |i_out|) / 2 with i_in = 0, i_common = -i_out: the old current
     assert abs(measured) == pytest.approx(2 * held, rel=1e-3)
-    _, stopped, _, _ = commutation_step(held, sign * 1e-4, held, s6, theta_e, omega,
-                                        np.full(3, k), np.zeros(3), np.full(3, inductance),
-                                        vdc, 1e-5)
+    _, stopped, _, _ = commutation_step(
+        held,
+        sign * 1e-4,
+        held,
+        s6,
+        theta_e,
+        omega,
+        np.full(3, k),
+        np.zeros(3),
+        np.full(3, inductance),
+        vdc,
+        1e-5,
+    )
     assert stopped == 0.0
 
 
@@ -131,10 +151,15 @@ def test_batch_evaluator_equals_single_runs(params):
     assert objective.evaluations == 18
 
 
-@pytest.mark.parametrize("quantity,truth,span", [
-    ("friction", 1.8, 0.6), ("backlash", 4e-4, 3e-4), ("short_circuit_a", 0.2, 0.15),
-    ("eccentricity_zeta", 0.2, 0.15),
-])
+@pytest.mark.parametrize(
+    "quantity,truth,span",
+    [
+        ("friction", 1.8, 0.6),
+        ("backlash", 4e-4, 3e-4),
+        ("short_circuit_a", 0.2, 0.15),
+        ("eccentricity_zeta", 0.2, 0.15),
+    ],
+)
 def test_error_surface_has_its_minimum_at_the_truth(params, quantity, truth, span):
     """Along each fault axis through the Fig. 10 truth, the fitness is lowest near the truth.
 
@@ -192,14 +217,25 @@ def test_calibrate_finds_a_linear_z_zeta_law_and_never_edits_its_input(tmp_path)
     assert (out / "z_vs_zeta.png").stat().st_size > 5000
 
     written = parameters.load(str(out / "parameters.yaml"))
-    assert written.spec.monitor.eccentricity_gain == pytest.approx(cal["eccentricity_gain"], abs=1e-4)
+    assert written.spec.monitor.eccentricity_gain == pytest.approx(
+        cal["eccentricity_gain"], abs=1e-4
+    )
     assert written.spec.monitor.commutation_loss == pytest.approx(cal["commutation_loss"], rel=1e-3)
     assert "written by `emaprog calibrate`" in written.spec.changes[-1]
     scenario = yaml.safe_load((ROOT / "configs" / "chirp-nominal.yaml").read_text())
     scenario.update(parameters=str(out / "parameters.yaml"), duration=0.05)
     (tmp_path / "s.yaml").write_text(yaml.safe_dump(scenario))
-    result = CliRunner().invoke(app, ["simulate", str(tmp_path / "s.yaml"), "--model", "monitor",
-                                      "-o", str(tmp_path / "t.parquet")])
+    result = CliRunner().invoke(
+        app,
+        [
+            "simulate",
+            str(tmp_path / "s.yaml"),
+            "--model",
+            "monitor",
+            "-o",
+            str(tmp_path / "t.parquet"),
+        ],
+    )
     assert result.exit_code == 0, result.output
     assert (tmp_path / "t.parquet").stat().st_size > 1000
 
@@ -222,10 +258,12 @@ def test_pair_eccentricity_law_is_the_reference_law_on_the_active_pair():
         for theta_e in np.linspace(0.0, 2 * math.pi, 37):
             s6 = sector(theta_e)
             p, q = POSITIVE_PHASE[s6], NEGATIVE_PHASE[s6]
-            gain = pair_eccentricity_coefficients(theta_e, s6, z, eccentricity_offsets(phi),
-                                                  working, k, np.empty(3))
-            reference = (phase_coefficient(theta_e, working[p], 2 * z, phi, p, k)
-                         + phase_coefficient(theta_e, working[q], 2 * z, phi, q, k))
+            gain = pair_eccentricity_coefficients(
+                theta_e, s6, z, eccentricity_offsets(phi), working, k, np.empty(3)
+            )
+            reference = phase_coefficient(
+                theta_e, working[p], 2 * z, phi, p, k
+            ) + phase_coefficient(theta_e, working[q], 2 * z, phi, q, k)
             assert gain == pytest.approx(reference, rel=1e-12)
             if working.min() == 1.0:
                 shape = eccentricity_shape(theta_e, s6, phi, ECCENTRICITY_PAIR)
@@ -260,13 +298,24 @@ def test_unit_rows_vary_the_plant_per_candidate(params):
     objective = objective_for("fig10-multiple-faults", params)
     genes = np.random.default_rng(3).random((3, objective.dims))
     rows = objective.kernel_rows(genes)
-    changed = {"motor_inertia": 1.08, "surface_inertia": 0.9, "motor_viscous": 1.3,
-               "static_friction": 1.1, "dynamic_friction": 1.05, "phase_resistance": 1.1,
-               "back_emf_constant": 0.98, "phase_inductance": 0.9, "transmission_stiffness": 0.85}
+    changed = {
+        "motor_inertia": 1.08,
+        "surface_inertia": 0.9,
+        "motor_viscous": 1.3,
+        "static_friction": 1.1,
+        "dynamic_friction": 1.05,
+        "phase_resistance": 1.1,
+        "back_emf_constant": 0.98,
+        "phase_inductance": 0.9,
+        "transmission_stiffness": 0.85,
+    }
     spec = params.spec.model_dump()
     for key, factor in changed.items():
-        section = "electrical" if key in ("phase_resistance", "back_emf_constant",
-                                          "phase_inductance") else "mechanical"
+        section = (
+            "electrical"
+            if key in ("phase_resistance", "back_emf_constant", "phase_inductance")
+            else "mechanical"
+        )
         spec[section][key] *= factor
     unit = derive(ParameterFile.model_validate(spec), "in memory")
     hinge = 60.0
@@ -275,8 +324,15 @@ def test_unit_rows_vary_the_plant_per_candidate(params):
 
     def fitness(units):
         out = np.empty(rows.shape[0])
-        evaluate_population(rows, units, objective.inputs.drive(), params.plant, objective.options,
-                            objective.target, out)
+        evaluate_population(
+            rows,
+            units,
+            objective.inputs.drive(),
+            params.plant,
+            objective.options,
+            objective.target,
+            out,
+        )
         return out
 
     shared = fitness(row[None])
@@ -285,10 +341,16 @@ def test_unit_rows_vary_the_plant_per_candidate(params):
     from emaprog.faults import MonitorFaults
 
     for j in range(rows.shape[0]):
-        run = monitor.run(unit, objective.inputs, MonitorFaults(*rows[j]), opts=objective.options,
-                          hinge_moment=hinge)
+        run = monitor.run(
+            unit,
+            objective.inputs,
+            MonitorFaults(*rows[j]),
+            opts=objective.options,
+            hinge_moment=hinge,
+        )
         filtered = low_pass(run["current"], objective.filter_width)
         t = objective.target
-        expected = (np.sum(t.sample_weight * (filtered - t.current) ** 2)
-                    / np.sum(t.sample_weight * t.current ** 2))
+        expected = np.sum(t.sample_weight * (filtered - t.current) ** 2) / np.sum(
+            t.sample_weight * t.current**2
+        )
         assert shared[j] == pytest.approx(expected, rel=1e-10)

@@ -68,13 +68,30 @@ def test_reports_and_units_are_not_overwritten_without_force(tmp_path, trace):
     assert unit.read_text() == "name: mine\n" and not leftovers(tmp_path)
 
 
-@pytest.mark.parametrize("data,fragment", [
-    ({"command": {"kind": "chirp", "amplitude": 0.05, "start_freqency": 0.5, "end_frequency": 10}},
-     "did you mean 'start_frequency'? (allowed here: amplitude, end_frequency, kind, offset, "
-     "start_frequency)"),
-    ({"command": {"kind": "step", "amplitude": 0.05}, "load": {"kind": "spring", "stifness": 10}},
-     "did you mean 'stiffness'? (allowed here: kind, stiffness, torque)"),
-])
+@pytest.mark.parametrize(
+    "data,fragment",
+    [
+        (
+            {
+                "command": {
+                    "kind": "chirp",
+                    "amplitude": 0.05,
+                    "start_freqency": 0.5,
+                    "end_frequency": 10,
+                }
+            },
+            "did you mean 'start_frequency'? (allowed here: amplitude, end_frequency, kind, offset, "
+            "start_frequency)",
+        ),
+        (
+            {
+                "command": {"kind": "step", "amplitude": 0.05},
+                "load": {"kind": "spring", "stifness": 10},
+            },
+            "did you mean 'stiffness'? (allowed here: kind, stiffness, torque)",
+        ),
+    ],
+)
 def test_a_typo_inside_a_tagged_union_lists_the_keys_of_its_kind(data, fragment):
     with pytest.raises(InputError) as caught:
         parse_scenario({"name": "x", "duration": 0.5, **data}, "s.yaml")
@@ -84,10 +101,18 @@ def test_a_typo_inside_a_tagged_union_lists_the_keys_of_its_kind(data, fragment)
 def test_check_accepts_column_maps_and_parameter_sets(tmp_path):
     result = run(["check", RIG / "logger.yaml", CONFIGS / "parameters" / "default.yaml"])
     assert result.exit_code == 0, result.output
-    assert "column map of 7 channels" in result.output and "parameter set 'default'" in result.output
+    assert (
+        "column map of 7 channels" in result.output and "parameter set 'default'" in result.output
+    )
     bad = tmp_path / "map.yaml"
-    bad.write_text(yaml.safe_dump({**yaml.safe_load((RIG / "logger.yaml").read_text()),
-                                   "speed": {"column": "MotSpd_rpm", "unit": "rpms"}}))
+    bad.write_text(
+        yaml.safe_dump(
+            {
+                **yaml.safe_load((RIG / "logger.yaml").read_text()),
+                "speed": {"column": "MotSpd_rpm", "unit": "rpms"},
+            }
+        )
+    )
     refused = run(["check", bad])
     assert refused.exit_code == 2 and "speed" in refused.output and "rpm" in refused.output
 

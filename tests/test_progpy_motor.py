@@ -68,9 +68,15 @@ def test_reference_motor_matches_progpy_dcmotor(params):
     e = params.spec.electrical
     m = params.spec.mechanical
     pp = e.pole_pairs
-    motor = progpy_models.DCMotor(L=e.phase_inductance, M=0.0, R=e.phase_resistance,
-                                  K=e.back_emf_constant, B=m.motor_viscous, Po=2 * pp,
-                                  J=m.motor_inertia)
+    motor = progpy_models.DCMotor(
+        L=e.phase_inductance,
+        M=0.0,
+        R=e.phase_resistance,
+        K=e.back_emf_constant,
+        B=m.motor_viscous,
+        Po=2 * pp,
+        J=m.motor_inertia,
+    )
     dt, steps = 1e-6, 60_000
     x = motor.initialize()
     x["theta"] = ANGLE_SHIFT  # both rotors at our electrical angle 0
@@ -87,25 +93,35 @@ def test_reference_motor_matches_progpy_dcmotor(params):
         u, load = _drive(k * dt)
         # ProgPy: star point from its own state
         shapes = [trapezoid(float(x["theta"]) - ANGLE_SHIFT + PHASE_OFFSET[p]) for p in range(3)]
-        emf_theirs = np.array([e.back_emf_constant * shapes[p] * float(x["v_rot"]) for p in range(3)])
+        emf_theirs = np.array(
+            [e.back_emf_constant * shapes[p] * float(x["v_rot"]) for p in range(3)]
+        )
         phase_v = u - u.mean() + emf_theirs.mean()
         inputs = {f"v_{'abc'[PROGPY_PHASE[p]]}": float(phase_v[p]) for p in range(3)}
         x = motor.next_state(x, motor.InputContainer({**inputs, "t_l": load}), dt)
-        theirs[k] = (float(x["i_a"]), float(x["i_c"]), float(x["i_b"]), float(x["v_rot"]),
-                     (float(x["theta"]) - ANGLE_SHIFT) % (2.0 * math.pi))
+        theirs[k] = (
+            float(x["i_a"]),
+            float(x["i_c"]),
+            float(x["i_b"]),
+            float(x["v_rot"]),
+            (float(x["theta"]) - ANGLE_SHIFT) % (2.0 * math.pi),
+        )
 
         # ours: the Reference kernel's phase coefficient, shape, star rates and torque sum
         theta_e = pp * theta_m
         torque = 0.0
         for p in range(3):
-            shape = phase_coefficient(theta_e, 1.0, 0.0, 0.0, p, e.back_emf_constant) * \
-                trapezoid(theta_e + PHASE_OFFSET[p])
+            shape = phase_coefficient(theta_e, 1.0, 0.0, 0.0, p, e.back_emf_constant) * trapezoid(
+                theta_e + PHASE_OFFSET[p]
+            )
             back_emf[p] = shape * omega
             torque += shape * i[p]
         rates = star_rates(u, tied, i, back_emf, r, inductance, e.dc_bus_voltage)
         i += np.array(rates[:3]) * dt
-        omega, theta_m = omega + (torque - m.motor_viscous * omega - load) / m.motor_inertia * dt, \
-            theta_m + omega * dt
+        omega, theta_m = (
+            omega + (torque - m.motor_viscous * omega - load) / m.motor_inertia * dt,
+            theta_m + omega * dt,
+        )
         ours[k] = (i[0], i[1], i[2], omega, (pp * theta_m) % (2.0 * math.pi))
 
     scale_i = np.abs(theirs[:, :3]).max()

@@ -14,8 +14,9 @@ from .conftest import low_pass, nrmse, reference_run
 
 def energy_residual(ledger: dict) -> float:
     """Inverter energy minus losses minus change of stored energy [J]."""
-    losses = sum(ledger[k] for k in ("copper", "friction", "viscous", "link_damping", "load",
-                                     "end_stop"))
+    losses = sum(
+        ledger[k] for k in ("copper", "friction", "viscous", "link_damping", "load", "end_stop")
+    )
     return ledger["inverter"] - losses - (ledger["stored_final"] - ledger["stored_initial"])
 
 
@@ -76,7 +77,9 @@ def test_step_settles_without_limit_cycle(params):
     t, pos = cols["time"], cols["position"] - params.spec.sensors.position_offset
     final = t > 0.2
     assert np.max(pos) < 0.03 * 1.05  # overshoot below 5 %
-    assert abs(np.mean(pos[final]) - 0.03) < 3e-4  # 1 % steady error (spring load, no I in position loop)
+    assert (
+        abs(np.mean(pos[final]) - 0.03) < 3e-4
+    )  # 1 % steady error (spring load, no I in position loop)
     # settled: the last 100 ms move less than 2 ADC steps; no oscillation in speed
     assert np.ptp(pos[final]) <= 2 * params.sensors.position_lsb + 1e-12
     assert np.max(np.abs(cols["speed"][final])) < 2.0
@@ -91,9 +94,12 @@ def test_same_seed_same_trace_and_noise_follows_the_seed(params):
     from .conftest import scenario
 
     sc = scenario("friction")
-    again, _ = reference.run(params, inputs(sc, params), reference_form(flatten(sc.faults)), sc.seed)
-    other, _ = reference.run(params, inputs(sc, params), reference_form(flatten(sc.faults)),
-                             sc.seed + 1)
+    again, _ = reference.run(
+        params, inputs(sc, params), reference_form(flatten(sc.faults)), sc.seed
+    )
+    other, _ = reference.run(
+        params, inputs(sc, params), reference_form(flatten(sc.faults)), sc.seed + 1
+    )
     assert all(np.array_equal(a[k], again[k]) for k in a)
     assert not np.array_equal(a["current"], other["current"])
 
@@ -101,8 +107,9 @@ def test_same_seed_same_trace_and_noise_follows_the_seed(params):
 def test_healthy_fault_values_give_the_nominal_actuator():
     """Faults -> 0 is the healthy model: vanishing faults change nothing measurable."""
     nominal, _ = reference_run("chirp-nominal", HEALTHY)
-    tiny, _ = reference_run("chirp-nominal", HEALTHY._replace(backlash=1e-12, short_a=1e-12,
-                                                              eccentricity_zeta=1e-12))
+    tiny, _ = reference_run(
+        "chirp-nominal", HEALTHY._replace(backlash=1e-12, short_a=1e-12, eccentricity_zeta=1e-12)
+    )
     assert nrmse(low_pass(tiny["current"]), low_pass(nominal["current"])) < 1e-3
     assert np.max(np.abs(tiny["position"] - nominal["position"])) < 1e-6
 
@@ -150,8 +157,9 @@ def test_short_circuit_raises_ripple_where_the_faulty_phase_conducts(params):
 
 def test_eccentricity_changes_current_but_barely_position():
     nominal, _ = reference_run("chirp-nominal", HEALTHY)
-    faulty, _ = reference_run("chirp-nominal", HEALTHY._replace(eccentricity_zeta=0.4,
-                                                                  eccentricity_phase=1.0))
+    faulty, _ = reference_run(
+        "chirp-nominal", HEALTHY._replace(eccentricity_zeta=0.4, eccentricity_phase=1.0)
+    )
     assert nrmse(low_pass(faulty["current"]), low_pass(nominal["current"])) > 0.01
     assert nrmse(faulty["position"], nominal["position"]) < 0.005
 
@@ -167,8 +175,9 @@ def test_chunked_run_behind_a_progress_bar_is_the_single_run(params, monkeypatch
     sc = scenario("fig10-multiple-faults")
     whole, ledger = reference_run("fig10-multiple-faults", noise=True)
     monkeypatch.setattr(reference, "PROGRESS_STEPS", 1)  # every run counts as long
-    chunked, chunked_ledger = reference.run(params, inputs(sc, params), reference_form(flatten(sc.faults)),
-                                            sc.seed, show_progress=True)
+    chunked, chunked_ledger = reference.run(
+        params, inputs(sc, params), reference_form(flatten(sc.faults)), sc.seed, show_progress=True
+    )
     assert all(np.array_equal(whole[k], chunked[k]) for k in whole)
     assert chunked_ledger == pytest.approx(ledger, rel=1e-12, abs=1e-15)
     log = capsys.readouterr().err  # not a terminal: plain progress lines

@@ -4,6 +4,7 @@ the README and docs link only inside the project, and the API example runs."""
 from __future__ import annotations
 
 import re
+from pathlib import Path
 from typing import get_args
 
 import pytest
@@ -48,9 +49,23 @@ def test_every_trace_column_fault_quantity_and_report_key_is_documented():
     from emaprog.io.storage import COLUMNS
 
     text = REFERENCE.read_text()
-    names = [*COLUMNS, *QUANTITIES, *(f.name for f in CATALOGUE),
-             "estimate", "truth", "error", "health", "fitness", "evaluations", "elapsed_s",
-             "seed", "settings", "emaprog_version", "inspection", "short_circuit_phase"]
+    names = [
+        *COLUMNS,
+        *QUANTITIES,
+        *(f.name for f in CATALOGUE),
+        "estimate",
+        "truth",
+        "error",
+        "health",
+        "fitness",
+        "evaluations",
+        "elapsed_s",
+        "seed",
+        "settings",
+        "emaprog_version",
+        "inspection",
+        "short_circuit_phase",
+    ]
     assert not [n for n in names if f"`{n}`" not in text]
 
 
@@ -61,8 +76,16 @@ def test_every_command_and_option_is_documented():
 
     text = REFERENCE.read_text()
     group = typer.main.get_command(app)
-    assert set(group.commands) == {"check", "simulate", "convert", "identify", "calibrate",
-                                   "commission", "sweep", "trend"}
+    assert set(group.commands) == {
+        "check",
+        "simulate",
+        "convert",
+        "identify",
+        "calibrate",
+        "commission",
+        "sweep",
+        "trend",
+    }
     for name, command in group.commands.items():
         assert f"emaprog {name}" in text, name
         for param in command.params:
@@ -71,8 +94,9 @@ def test_every_command_and_option_is_documented():
                     assert option in text, f"{name} {option}"
 
 
-@pytest.mark.parametrize("document", ["README.md", *(str(p.relative_to(ROOT)) for p in
-                                                       (ROOT / "docs").rglob("*.md"))])
+@pytest.mark.parametrize(
+    "document", ["README.md", *(str(p.relative_to(ROOT)) for p in (ROOT / "docs").rglob("*.md"))]
+)
 def test_links_stay_inside_the_project(document):
     """Relative links resolve to files of the project; none leaves it (no ../shared)."""
     path = ROOT / document
@@ -90,3 +114,49 @@ def test_api_example_runs(monkeypatch):
     code = re.search(r"```python\n(.*?)```", block, re.S).group(1)
     monkeypatch.chdir(ROOT)
     exec(compile(code, "docs/reference.md", "exec"), {})
+
+
+def _bash_commands(document: Path) -> list[str]:
+    blocks = re.findall(r"```bash\n(.*?)```", document.read_text(), re.S)
+    return [
+        line.split("#")[0].strip()
+        for block in blocks
+        for line in block.splitlines()
+        if line.strip().startswith("emaprog ")
+    ]
+
+
+def test_the_rig_tutorial_runs_the_readme_commands():
+    """The rig tutorial's commands are the README's rig block (run as written by
+    tests/test_rig_day.py), so the two cannot drift apart."""
+    readme = (ROOT / "README.md").read_text().split("<!-- rig-commands -->", 1)[1]
+    readme_commands = [
+        line.strip()
+        for line in readme.split("```bash", 1)[1].split("```", 1)[0].strip().splitlines()
+    ]
+    assert _bash_commands(ROOT / "docs" / "tutorials" / "rig-unit.md") == readme_commands
+
+
+@pytest.mark.slow
+def test_the_twin_tutorial_runs_as_written(tmp_path, monkeypatch):
+    """Every command of the twin-experiment tutorial, as written, in a copy of the project's
+    configs (exit 0 and the files it says); the quick campaign's sweep is left to
+    tests/test_sweep.py (1.7 min on 2 cores)."""
+    import shlex
+    import shutil
+
+    from typer.testing import CliRunner
+
+    from emaprog.cli import app
+
+    shutil.copytree(ROOT / "configs", tmp_path / "configs")
+    monkeypatch.chdir(tmp_path)
+    commands = _bash_commands(ROOT / "docs" / "tutorials" / "twin-experiment.md")
+    assert any(c.startswith("emaprog identify") for c in commands)
+    for command in commands:
+        if command.startswith("emaprog sweep"):
+            continue
+        result = CliRunner().invoke(app, shlex.split(command)[1:])
+        assert result.exit_code == 0, (command, result.output)
+    assert (tmp_path / "out" / "fig10-report" / "report.json").exists()
+    assert (tmp_path / "out" / "demo-trend" / "trend.json").exists()

@@ -32,8 +32,16 @@ from .conftest import ROOT
 
 RIG = ROOT / "examples" / "rig"
 TRUTH = json.loads((RIG / "truth.json").read_text())["recordings"]
-LOGGER_UNITS = {"Time_ms": "ms", "Cmd_deg": "deg", "Pos_deg": "deg", "MotSpd_rpm": "rpm",
-                "Ia_mA": "mA", "Ib_mA": "mA", "Ic_mA": "mA", "MotAng_deg": "deg"}
+LOGGER_UNITS = {
+    "Time_ms": "ms",
+    "Cmd_deg": "deg",
+    "Pos_deg": "deg",
+    "MotSpd_rpm": "rpm",
+    "Ia_mA": "mA",
+    "Ib_mA": "mA",
+    "Ic_mA": "mA",
+    "MotAng_deg": "deg",
+}
 #: The example logger's columns (a motor angle only where a test adds one).
 LOGGER_COLUMNS = list(LOGGER_UNITS)[:7]
 
@@ -117,8 +125,9 @@ def logger_frame(name: str) -> pd.DataFrame:
     return pd.read_csv(RIG / name, skiprows=[0, 1, 3])
 
 
-def write_logger(frame: pd.DataFrame, path: Path, sep=",", decimal=".", preamble=(),
-                 units=True) -> Path:
+def write_logger(
+    frame: pd.DataFrame, path: Path, sep=",", decimal=".", preamble=(), units=True
+) -> Path:
     lines = [*preamble, sep.join(frame.columns)]
     if units:
         lines.append(sep.join(LOGGER_UNITS[c] for c in frame.columns))
@@ -135,8 +144,9 @@ def preroll_frames(seconds: float = 0.05) -> dict[str, pd.DataFrame]:
     frames = {}
     for name in ("healthy-20Nm.csv", "healthy-40Nm.csv", "inspection-1500h.csv"):
         t = TRUTH[name]
-        cols = gen.simulate_recording(t["hinge_moment"], t["faults"], t["noise_seed"],
-                                      preroll=seconds)
+        cols = gen.simulate_recording(
+            t["hinge_moment"], t["faults"], t["noise_seed"], preroll=seconds
+        )
         cols["time"] = cols["time"] + 12.0  # the logger's own clock
         rows = [r.split(",") for r in gen.logger_rows(cols)]
         frames[name] = pd.DataFrame(rows, columns=LOGGER_COLUMNS).astype(float)
@@ -150,17 +160,24 @@ def variant(kind: str, name: str, folder: Path) -> Path:
     if kind == "no-speed":
         return write_logger(frame.drop(columns=["MotSpd_rpm"]), folder / name)
     if kind == "european":
-        return write_logger(frame, folder / name, sep=";", decimal=",",
-                            preamble=("Messdaten exportiert 01.12.2026 10:04", "Prüfstand 2; Kanal 1-7"))
+        return write_logger(
+            frame,
+            folder / name,
+            sep=";",
+            decimal=",",
+            preamble=("Messdaten exportiert 01.12.2026 10:04", "Prüfstand 2; Kanal 1-7"),
+        )
     if kind == "swapped":
-        return write_logger(frame.rename(columns={"Ia_mA": "Ib_mA", "Ib_mA": "Ia_mA"})[frame.columns],
-                            folder / name)
+        return write_logger(
+            frame.rename(columns={"Ia_mA": "Ib_mA", "Ib_mA": "Ia_mA"})[frame.columns], folder / name
+        )
     return write_logger(frame, folder / name, preamble=("pre-roll 50 ms",))
 
 
 def column_map(folder: Path, drop=()) -> Path:
-    mapping = {k: v for k, v in yaml.safe_load((RIG / "logger.yaml").read_text()).items()
-               if k not in drop}
+    mapping = {
+        k: v for k, v in yaml.safe_load((RIG / "logger.yaml").read_text()).items() if k not in drop
+    }
     path = folder / "map.yaml"
     path.write_text(yaml.safe_dump(mapping))
     return path
@@ -180,17 +197,31 @@ def test_other_loggers_are_identified_with_the_documented_commands(tmp_path, kin
     healthy = [variant(kind, n, tmp_path) for n in ("healthy-20Nm.csv", "healthy-40Nm.csv")]
     inspection = variant(kind, "inspection-1500h.csv", tmp_path)
     unit = tmp_path / "unit.yaml"
-    result = run(["commission", *map(str, healthy), "--columns", str(mapping), "-o", str(unit),
-                  *test])
+    result = run(
+        ["commission", *map(str, healthy), "--columns", str(mapping), "-o", str(unit), *test]
+    )
     assert result.exit_code == 0, result.output
-    result = run(["identify", str(inspection), "--columns", str(mapping), "-p", str(unit),
-                  "-o", str(tmp_path / "report"), *test])
+    result = run(
+        [
+            "identify",
+            str(inspection),
+            "--columns",
+            str(mapping),
+            "-p",
+            str(unit),
+            "-o",
+            str(tmp_path / "report"),
+            *test,
+        ]
+    )
     assert result.exit_code == 0, result.output
     report = json.loads((tmp_path / "report" / "report.json").read_text())
     truth = dict(TRUTH["inspection-1500h.csv"])
     if kind == "swapped":
-        truth = {**truth, "faults": {**truth["faults"], "short_circuit": {"a": 0.12, "b": 0.0,
-                                                                           "c": 0.0}}}
+        truth = {
+            **truth,
+            "faults": {**truth["faults"], "short_circuit": {"a": 0.12, "b": 0.0, "c": 0.0}},
+        }
     assert within_spec(report, truth) == [], within_spec(report, truth)
     assert report["short_circuit_phase"] == ("a" if kind == "swapped" else "b")
     # swapped in the inspection only (commissioned from the swapped healthy files too): the
@@ -198,7 +229,8 @@ def test_other_loggers_are_identified_with_the_documented_commands(tmp_path, kin
     assert "agrees" in report["phase_identity"]["commissioning"]
     # the logger column that now holds the shorted winding's current
     assert report["phase_channels"][report["short_circuit_phase"]] == (
-        "Ia_mA" if kind == "swapped" else "Ib_mA")
+        "Ia_mA" if kind == "swapped" else "Ib_mA"
+    )
     low, high = report["nuisance_interval"]["hinge_moment"]
     assert low <= 30.0 <= high
     if kind == "no-command":
@@ -208,17 +240,23 @@ def test_other_loggers_are_identified_with_the_documented_commands(tmp_path, kin
 
         params = parameters.load(str(unit))
         frame = pd.read_csv(inspection, skiprows=[1])
-        found = align_command(load_scenario(RIG / "test-command.yaml"), params,
-                              frame["Time_ms"].to_numpy() * 1e-3,
-                              np.radians(frame["Pos_deg"].to_numpy()))
+        found = align_command(
+            load_scenario(RIG / "test-command.yaml"),
+            params,
+            frame["Time_ms"].to_numpy() * 1e-3,
+            np.radians(frame["Pos_deg"].to_numpy()),
+        )
         assert abs(found.delay - 0.05) < 2e-4 and found.delay_error < 2e-4, found
 
 
-@pytest.mark.parametrize("edit,channel,fragment", [
-    ({"speed": {"column": "MotSpd_rpm", "unit": "rad/s"}}, "speed.unit", "says 'rpm'"),
-    ({"position": {"column": "Pos_deg", "unit": "rad"}}, "position.unit", "says 'deg'"),
-    ({"current_a": {"column": "Ia_mA", "unit": "A"}}, "current_a.unit", "says 'mA'"),
-])
+@pytest.mark.parametrize(
+    "edit,channel,fragment",
+    [
+        ({"speed": {"column": "MotSpd_rpm", "unit": "rad/s"}}, "speed.unit", "says 'rpm'"),
+        ({"position": {"column": "Pos_deg", "unit": "rad"}}, "position.unit", "says 'deg'"),
+        ({"current_a": {"column": "Ia_mA", "unit": "A"}}, "current_a.unit", "says 'mA'"),
+    ],
+)
 def test_a_map_whose_unit_contradicts_the_units_row_is_refused(tmp_path, edit, channel, fragment):
     """The logger's units row says rpm where the map says rad/s: exit 2 naming the channel,
     nothing written."""
@@ -227,8 +265,9 @@ def test_a_map_whose_unit_contradicts_the_units_row_is_refused(tmp_path, edit, c
     path = tmp_path / "map.yaml"
     path.write_text(yaml.safe_dump(mapping))
     out = tmp_path / "out"
-    result = run(["identify", str(RIG / "inspection-1500h.csv"), "--columns", str(path),
-                  "-o", str(out)])
+    result = run(
+        ["identify", str(RIG / "inspection-1500h.csv"), "--columns", str(path), "-o", str(out)]
+    )
     assert result.exit_code == 2, result.output
     assert channel in result.output and fragment in result.output
     assert not out.exists()
@@ -250,8 +289,14 @@ def test_dialects_are_detected(tmp_path, params):
         for key in ("time", "command", "position", "speed", "current", "current_b"):
             assert np.array_equal(other[key], plain[key]), key
     layout = european.metadata["source"]["layout"]
-    assert layout == {"delimiter": ";", "decimal": ",", "header_line": 3, "first_data_line": 5,
-                      "preamble_lines": 2, "units_lines": 1}
+    assert layout == {
+        "delimiter": ";",
+        "decimal": ",",
+        "header_line": 3,
+        "first_data_line": 5,
+        "preamble_lines": 2,
+        "units_lines": 1,
+    }
 
 
 def test_a_cut_last_line_is_refused_naming_it(tmp_path):
@@ -262,13 +307,29 @@ def test_a_cut_last_line_is_refused_naming_it(tmp_path):
     cut.write_text(text[:-1])
     complete = tmp_path / "complete.csv"
     complete.write_text(text)
-    result = run(["convert", str(cut), "--columns", str(RIG / "logger.yaml"),
-                  "-o", str(tmp_path / "cut.parquet")])
+    result = run(
+        [
+            "convert",
+            str(cut),
+            "--columns",
+            str(RIG / "logger.yaml"),
+            "-o",
+            str(tmp_path / "cut.parquet"),
+        ]
+    )
     assert result.exit_code == 2 and "last line" in result.output and "cut" in result.output
     assert re.search(r"line \d+", result.output)
     assert not (tmp_path / "cut.parquet").exists()
-    result = run(["convert", str(complete), "--columns", str(RIG / "logger.yaml"),
-                  "-o", str(tmp_path / "complete.parquet")])
+    result = run(
+        [
+            "convert",
+            str(complete),
+            "--columns",
+            str(RIG / "logger.yaml"),
+            "-o",
+            str(tmp_path / "complete.parquet"),
+        ]
+    )
     assert result.exit_code == 0, result.output
 
 
@@ -298,9 +359,16 @@ def test_tdms_recording_reads_like_the_csv(tmp_path, params):
     from emaprog.io.recordings import load_column_map, read_recording
 
     frame = logger_frame("healthy-20Nm.csv")
-    channels = [nptdms.ChannelObject("rig", name, frame[name].to_numpy(),
-                                     properties={"wf_increment": 1e-4, "wf_start_offset": 0.0})
-                for name in frame.columns if name != "Time_ms"]
+    channels = [
+        nptdms.ChannelObject(
+            "rig",
+            name,
+            frame[name].to_numpy(),
+            properties={"wf_increment": 1e-4, "wf_start_offset": 0.0},
+        )
+        for name in frame.columns
+        if name != "Time_ms"
+    ]
     path = tmp_path / "run.tdms"
     with nptdms.TdmsWriter(path) as writer:
         writer.write_segment([nptdms.GroupObject("rig"), *channels])
@@ -318,19 +386,40 @@ def test_a_recording_that_starts_in_motion_is_refused(tmp_path):
     """Cut 0.1 s into the chirp: exit 2 saying it starts in motion, no report."""
     frame = logger_frame("inspection-1500h.csv").iloc[1000:]
     path = write_logger(frame, tmp_path / "late.csv")
-    result = run(["identify", str(path), "--columns", str(RIG / "logger.yaml"),
-                  "-o", str(tmp_path / "rep")])
+    result = run(
+        ["identify", str(path), "--columns", str(RIG / "logger.yaml"), "-o", str(tmp_path / "rep")]
+    )
     assert result.exit_code == 2 and "starts in motion" in result.output, result.output
     assert not (tmp_path / "rep").exists()
 
 
-@pytest.mark.parametrize("edit,channel,fragment", [
-    ({"speed": {"column": "MotSpd_rpm", "unit": "rpm", "sign": -1}}, "speed", "sign is inverted"),
-    ({"speed": {"column": "MotSpd_rpm", "unit": "rpm", "scale": 60 / (2 * 3.141592653589793)}},
-     "speed", "rpm mapped as rad/s?"),
-    ({"position": {"column": "Pos_deg", "unit": "deg", "sign": -1}}, "position", "inverted"),
-    ({"current_b": {"column": "Ib_mA", "unit": "mA", "scale": 1000.0}}, "current", "mA mapped as A?"),
-])
+@pytest.mark.parametrize(
+    "edit,channel,fragment",
+    [
+        (
+            {"speed": {"column": "MotSpd_rpm", "unit": "rpm", "sign": -1}},
+            "speed",
+            "sign is inverted",
+        ),
+        (
+            {
+                "speed": {
+                    "column": "MotSpd_rpm",
+                    "unit": "rpm",
+                    "scale": 60 / (2 * 3.141592653589793),
+                }
+            },
+            "speed",
+            "rpm mapped as rad/s?",
+        ),
+        ({"position": {"column": "Pos_deg", "unit": "deg", "sign": -1}}, "position", "inverted"),
+        (
+            {"current_b": {"column": "Ib_mA", "unit": "mA", "scale": 1000.0}},
+            "current",
+            "mA mapped as A?",
+        ),
+    ],
+)
 def test_mis_mapped_channels_are_named_before_fitting(tmp_path, edit, channel, fragment):
     """A flipped sign or a wrong unit (here stated through scale/sign, as a units row would
     catch a plain unit): identify exits 2 before fitting, naming the channel and the
@@ -339,8 +428,16 @@ def test_mis_mapped_channels_are_named_before_fitting(tmp_path, edit, channel, f
     mapping = {**yaml.safe_load((RIG / "logger.yaml").read_text()), **edit}
     path = tmp_path / "map.yaml"
     path.write_text(yaml.safe_dump(mapping))
-    result = run(["identify", str(RIG / "inspection-1500h.csv"), "--columns", str(path),
-                  "-o", str(tmp_path / "rep")])
+    result = run(
+        [
+            "identify",
+            str(RIG / "inspection-1500h.csv"),
+            "--columns",
+            str(path),
+            "-o",
+            str(tmp_path / "rep"),
+        ]
+    )
     assert result.exit_code == 2, result.output
     assert channel in result.output and fragment in result.output, result.output
     assert not (tmp_path / "rep").exists()
@@ -353,10 +450,23 @@ def test_a_rewired_logger_is_said_against_the_commissioning(tmp_path):
     differs from the commissioning recordings'."""
     unit = tmp_path / "unit.yaml"
     healthy = [str(RIG / n) for n in ("healthy-20Nm.csv", "healthy-40Nm.csv")]
-    assert run(["commission", *healthy, "-c", str(RIG / "logger.yaml"), "-o", str(unit)]).exit_code == 0
+    assert (
+        run(["commission", *healthy, "-c", str(RIG / "logger.yaml"), "-o", str(unit)]).exit_code
+        == 0
+    )
     inspection = variant("swapped", "inspection-1500h.csv", tmp_path)
-    result = run(["identify", str(inspection), "-c", str(RIG / "logger.yaml"), "-p", str(unit),
-                  "-o", str(tmp_path / "rep")])
+    result = run(
+        [
+            "identify",
+            str(inspection),
+            "-c",
+            str(RIG / "logger.yaml"),
+            "-p",
+            str(unit),
+            "-o",
+            str(tmp_path / "rep"),
+        ]
+    )
     assert result.exit_code == 0, result.output
     report = json.loads((tmp_path / "rep" / "report.json").read_text())
     assert report["short_circuit_phase"] == "a"
@@ -379,13 +489,17 @@ def test_a_rotor_off_the_sensor_zero_is_located_and_its_short_named(tmp_path):
     unit_truth = gen.unit_parameters()
     faults = {"friction": 1.5, "short_circuit": {"a": 0.12, "b": 0.0, "c": 0.0}}
     frames = {}
-    for name, hinge, fault, seed in (("healthy-20Nm.csv", 20.0, {}, 31),
-                                      ("healthy-40Nm.csv", 40.0, {}, 32),
-                                      ("inspection.csv", 30.0, faults, 33)):
-        cols = gen.simulate_recording(hinge, fault, seed, unit=unit_truth,
-                                      electrical_angle=math.radians(69.0))
-        frame = pd.DataFrame([r.split(",") for r in gen.logger_rows(cols)],
-                             columns=LOGGER_COLUMNS).astype(float)
+    for name, hinge, fault, seed in (
+        ("healthy-20Nm.csv", 20.0, {}, 31),
+        ("healthy-40Nm.csv", 40.0, {}, 32),
+        ("inspection.csv", 30.0, faults, 33),
+    ):
+        cols = gen.simulate_recording(
+            hinge, fault, seed, unit=unit_truth, electrical_angle=math.radians(69.0)
+        )
+        frame = pd.DataFrame(
+            [r.split(",") for r in gen.logger_rows(cols)], columns=LOGGER_COLUMNS
+        ).astype(float)
         frame["MotAng_deg"] = np.round(np.degrees(cols["motor_angle"]), 4)
         frames[name] = write_logger(frame, tmp_path / name)
     mapping = yaml.safe_load((RIG / "logger.yaml").read_text())
@@ -393,11 +507,30 @@ def test_a_rotor_off_the_sensor_zero_is_located_and_its_short_named(tmp_path):
     (tmp_path / "map.yaml").write_text(yaml.safe_dump(mapping))
     columns = str(tmp_path / "map.yaml")
     unit = tmp_path / "unit.yaml"
-    result = run(["commission", str(frames["healthy-20Nm.csv"]), str(frames["healthy-40Nm.csv"]),
-                  "-c", columns, "-o", str(unit)])
+    result = run(
+        [
+            "commission",
+            str(frames["healthy-20Nm.csv"]),
+            str(frames["healthy-40Nm.csv"]),
+            "-c",
+            columns,
+            "-o",
+            str(unit),
+        ]
+    )
     assert result.exit_code == 0, result.output
-    result = run(["identify", str(frames["inspection.csv"]), "-c", columns, "-p", str(unit),
-                  "-o", str(tmp_path / "rep")])
+    result = run(
+        [
+            "identify",
+            str(frames["inspection.csv"]),
+            "-c",
+            columns,
+            "-p",
+            str(unit),
+            "-o",
+            str(tmp_path / "rep"),
+        ]
+    )
     assert result.exit_code == 0, result.output
     report = json.loads((tmp_path / "rep" / "report.json").read_text())
     truth = {"faults": faults}
@@ -408,7 +541,9 @@ def test_a_rotor_off_the_sensor_zero_is_located_and_its_short_named(tmp_path):
     swapped = pd.read_csv(frames["inspection.csv"], skiprows=[1])
     swapped = swapped.rename(columns={"Ia_mA": "Ib_mA", "Ib_mA": "Ia_mA"})[swapped.columns]
     path = write_logger(swapped, tmp_path / "swapped.csv")
-    result = run(["identify", str(path), "-c", columns, "-p", str(unit), "-o", str(tmp_path / "sw")])
+    result = run(
+        ["identify", str(path), "-c", columns, "-p", str(unit), "-o", str(tmp_path / "sw")]
+    )
     assert result.exit_code == 0, result.output
     report = json.loads((tmp_path / "sw" / "report.json").read_text())
     assert report["short_circuit_phase"] == "b" and report["phase_channels"]["b"] == "Ib_mA"

@@ -24,8 +24,11 @@ def test_time_grid_is_uniform_and_stops_before_duration():
 def test_chirp_instantaneous_frequency_sweeps_from_start_to_end():
     rate, duration, f0, f1 = 100_000.0, 2.0, 0.5, 10.0
     t = signals.time_grid(duration, rate)
-    x = signals.command(ChirpCommand(kind="chirp", amplitude=0.05, start_frequency=f0,
-                                     end_frequency=f1), t, duration)
+    x = signals.command(
+        ChirpCommand(kind="chirp", amplitude=0.05, start_frequency=f0, end_frequency=f1),
+        t,
+        duration,
+    )
     # instantaneous frequency from successive zero crossings (half periods), interpolated
     k = np.nonzero(np.sign(x[:-1]) * np.sign(x[1:]) < 0)[0]
     crossings = t[k] - x[k] * (t[k + 1] - t[k]) / (x[k + 1] - x[k])

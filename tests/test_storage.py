@@ -1,6 +1,5 @@
 """Trace Parquet: round trip with units and provenance; every malformed file refused."""
 
-
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
@@ -12,9 +11,18 @@ from emaprog.io.storage import COLUMNS, Trace, column_units, read_trace, write_t
 
 def make_trace(n=50, metadata=None):
     t = np.arange(n) / 1e4
-    cols = {"time": t, "command": np.sin(t), "position": np.cos(t), "speed": t * 2,
-            "current": t * 3, "current_a": t, "current_b": -t, "current_c": t * 0,
-            "torque": t, "motor_angle": t}
+    cols = {
+        "time": t,
+        "command": np.sin(t),
+        "position": np.cos(t),
+        "speed": t * 2,
+        "current": t * 3,
+        "current_a": t,
+        "current_b": -t,
+        "current_c": t * 0,
+        "torque": t,
+        "motor_angle": t,
+    }
     return Trace(cols, metadata)
 
 
@@ -31,8 +39,10 @@ def test_round_trip_keeps_values_units_and_provenance(tmp_path):
 
 def test_trace_without_metadata_is_valid(tmp_path):
     cols = make_trace().columns
-    pq.write_table(pa.table({k: cols[k] for k in ("time", "command", "position", "speed", "current")}),
-                   tmp_path / "rig.parquet")
+    pq.write_table(
+        pa.table({k: cols[k] for k in ("time", "command", "position", "speed", "current")}),
+        tmp_path / "rig.parquet",
+    )
     assert read_trace(tmp_path / "rig.parquet").metadata is None
 
 
@@ -64,7 +74,11 @@ def non_monotonic():
 
 
 BAD = {
-    "missing column": ({k: v for k, v in base_columns().items() if k != "current"}, None, "current"),
+    "missing column": (
+        {k: v for k, v in base_columns().items() if k != "current"},
+        None,
+        "current",
+    ),
     "NaN": (with_nan(), None, "NaN"),
     "non-monotonic time": (non_monotonic(), None, "increase"),
     "string column": ({**base_columns(), "speed": np.array(["x"] * 50)}, None, "speed"),

@@ -38,8 +38,12 @@ TINY = {
     "name": "tiny",
     "cases": 8,
     "seed": 11,
-    "scenario": {"name": "tiny-base", "duration": 0.2, "seed": 0,
-                 "command": {"kind": "sine", "amplitude": 0.05, "frequency": 4.0}},
+    "scenario": {
+        "name": "tiny-base",
+        "duration": 0.2,
+        "seed": 0,
+        "command": {"kind": "sine", "amplitude": 0.05, "frequency": 4.0},
+    },
     "faults": {
         "friction": {"uniform": [1.0, 3.0]},
         "backlash": {"uniform": [0.0, 1.0e-3]},
@@ -92,7 +96,10 @@ def test_cases_are_keyed_by_index_and_respect_their_distributions(tmp_path):
 
 
 def test_a_named_phase_is_the_only_one_shorted(tmp_path):
-    faults = {**TINY["faults"], "short_circuit": {"phase": "b", "fraction": {"uniform": [0.1, 0.2]}}}
+    faults = {
+        **TINY["faults"],
+        "short_circuit": {"phase": "b", "fraction": {"uniform": [0.1, 0.2]}},
+    }
     campaign, _ = load_campaign(write_campaign(tmp_path, faults=faults, cases=30))
     for k in range(30):
         healthy, f, _, _ = campaigns.sample_case(campaign, k)
@@ -107,8 +114,15 @@ def test_sweep_writes_one_file_per_case_with_spec_columns_and_summary(tiny):
     files = sorted((folder / "cases").glob("*.parquet"))
     assert [f.name for f in files] == [f"case-{k:06d}.parquet" for k in range(8)]
     frame = campaigns.CaseStore(folder).read()
-    for quantity in ("friction", "backlash", "short_circuit_a", "short_circuit_b",
-                     "short_circuit_c", "eccentricity_zeta", "eccentricity_phase"):
+    for quantity in (
+        "friction",
+        "backlash",
+        "short_circuit_a",
+        "short_circuit_b",
+        "short_circuit_c",
+        "eccentricity_zeta",
+        "eccentricity_phase",
+    ):
         for prefix in ("true", "est", "err"):
             assert f"{prefix}_{quantity}" in frame.columns
     for column in ("case_id", "noise_seed", "ga_seed", "fitness", "health_friction", *TIMINGS):
@@ -145,9 +159,14 @@ def test_resume_refuses_a_changed_campaign_and_a_used_folder(tiny, tmp_path):
 
 def _start_sweep(path: Path, folder: Path) -> subprocess.Popen:
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    return subprocess.Popen([sys.executable, "-m", "emaprog", "sweep", str(path), "-o", str(folder),
-                             "--workers", "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, env=env, start_new_session=True)
+    return subprocess.Popen(
+        [sys.executable, "-m", "emaprog", "sweep", str(path), "-o", str(folder), "--workers", "2"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+        start_new_session=True,
+    )
 
 
 def _wait_for_cases(folder: Path, count: int, process: subprocess.Popen, limit: float = 120.0):
@@ -170,7 +189,9 @@ def test_killed_sweep_resumes_to_the_uninterrupted_result(tiny, tmp_path):
     process.wait()
     survived = campaigns.CaseStore(folder).finished()
     assert 2 <= len(survived) < 16
-    result = runner.invoke(app, ["sweep", str(slow), "-o", str(folder), "--resume", "--workers", "2"])
+    result = runner.invoke(
+        app, ["sweep", str(slow), "-o", str(folder), "--resume", "--workers", "2"]
+    )
     assert result.exit_code == 0, result.output
     assert f"{16 - len(survived)} run now, {len(survived)} from earlier runs" in result.output
     frame = cases(folder)
@@ -216,31 +237,45 @@ def test_a_failing_case_is_recorded_and_retried_on_resume(tiny, tmp_path, monkey
 def test_dask_local_cluster_runs_the_same_cases(tiny, tmp_path):
     distributed = pytest.importorskip("distributed")
     path, outcome = tiny
-    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
-                                  host="127.0.0.1", dashboard_address=None) as cluster:
-        result = api.sweep(path, tmp_path / "dask", scheduler=cluster.scheduler_address,
-                           show_progress=False)
+    with distributed.LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+    ) as cluster:
+        result = api.sweep(
+            path, tmp_path / "dask", scheduler=cluster.scheduler_address, show_progress=False
+        )
     assert result.summary["run"]["scheduler"].startswith("tcp://127.0.0.1")
     pd.testing.assert_frame_equal(cases(tmp_path / "dask"), cases(outcome.folder))
 
 
 def test_unreachable_scheduler_is_invalid_input_and_writes_nothing(tiny, tmp_path):
     path, _ = tiny
-    result = runner.invoke(app, ["sweep", str(path), "-o", str(tmp_path / "x"),
-                                 "--scheduler", "tcp://127.0.0.1:9"])
+    result = runner.invoke(
+        app, ["sweep", str(path), "-o", str(tmp_path / "x"), "--scheduler", "tcp://127.0.0.1:9"]
+    )
     assert result.exit_code == 2 and "--scheduler" in result.output
     assert not (tmp_path / "x").exists()
 
 
 # ---------------------------------------------------------------- summary and baseline
 def _frame(rows: list[dict]) -> pd.DataFrame:
-    base = {"healthy_case": False, "simulate_s": 0.1, "identify_s": 1.0,
-            "true_short_circuit_phase": "none", "est_short_circuit_phase": "none"}
+    base = {
+        "healthy_case": False,
+        "simulate_s": 0.1,
+        "identify_s": 1.0,
+        "true_short_circuit_phase": "none",
+        "est_short_circuit_phase": "none",
+    }
     for fault in ("friction", "backlash", "short_circuit", "eccentricity"):
         base[f"health_{fault}"] = base[f"true_health_{fault}"] = "nominal"
-    for q, healthy in (("friction", 1.0), ("backlash", 0.0), ("short_circuit_a", 0.0),
-                       ("short_circuit_b", 0.0), ("short_circuit_c", 0.0),
-                       ("eccentricity_zeta", 0.0), ("eccentricity_phase", 0.0)):
+    for q, healthy in (
+        ("friction", 1.0),
+        ("backlash", 0.0),
+        ("short_circuit_a", 0.0),
+        ("short_circuit_b", 0.0),
+        ("short_circuit_c", 0.0),
+        ("eccentricity_zeta", 0.0),
+        ("eccentricity_phase", 0.0),
+    ):
         base[f"true_{q}"] = base[f"est_{q}"] = healthy
         base[f"err_{q}"] = 0.0
     return pd.DataFrame([{**base, **row} for row in rows])
@@ -248,33 +283,64 @@ def _frame(rows: list[dict]) -> pd.DataFrame:
 
 def test_summary_counts_detections_false_alarms_and_isolation():
     params = parameters.load("default")
-    frame = _frame([
-        {"healthy_case": True},  # correct healthy
-        {"healthy_case": True, "health_backlash": "incipient"},  # false alarm
-        {"true_health_short_circuit": "degraded", "health_short_circuit": "degraded",
-         "true_short_circuit_phase": "b", "est_short_circuit_phase": "b",
-         "true_short_circuit_b": 0.3, "est_short_circuit_b": 0.32, "err_short_circuit_b": 0.02},
-        {"true_health_short_circuit": "incipient", "health_short_circuit": "nominal",
-         "true_short_circuit_phase": "c", "true_short_circuit_c": 0.1, "err_short_circuit_c": -0.1},
-        {"true_health_friction": "degraded", "health_friction": "degraded",
-         "true_friction": 2.0, "est_friction": 2.2, "err_friction": 0.2},
-    ])
+    frame = _frame(
+        [
+            {"healthy_case": True},  # correct healthy
+            {"healthy_case": True, "health_backlash": "incipient"},  # false alarm
+            {
+                "true_health_short_circuit": "degraded",
+                "health_short_circuit": "degraded",
+                "true_short_circuit_phase": "b",
+                "est_short_circuit_phase": "b",
+                "true_short_circuit_b": 0.3,
+                "est_short_circuit_b": 0.32,
+                "err_short_circuit_b": 0.02,
+            },
+            {
+                "true_health_short_circuit": "incipient",
+                "health_short_circuit": "nominal",
+                "true_short_circuit_phase": "c",
+                "true_short_circuit_c": 0.1,
+                "err_short_circuit_c": -0.1,
+            },
+            {
+                "true_health_friction": "degraded",
+                "health_friction": "degraded",
+                "true_friction": 2.0,
+                "est_friction": 2.2,
+                "err_friction": 0.2,
+            },
+        ]
+    )
     s = summarize(frame, params)
     assert s["false_alarms"]["healthy_cases"] == 2 and s["false_alarms"]["rate"] == 0.5
     assert s["false_alarms"]["per_fault_on_healthy"]["backlash"] == 0.5
     assert s["detection"]["short_circuit"] == {"cases": 2, "detected": 1, "rate": 0.5}
     assert s["detection"]["friction"]["rate"] == 1.0 and s["detection"]["backlash"]["rate"] is None
-    assert s["isolation"]["confusion"]["b"]["b"] == 1 and s["isolation"]["confusion"]["c"]["none"] == 1
+    assert (
+        s["isolation"]["confusion"]["b"]["b"] == 1 and s["isolation"]["confusion"]["c"]["none"] == 1
+    )
     assert s["isolation"]["correct_rate"] == 0.5
     friction = s["errors"]["friction"]  # relative: 0.2 / 2.0 on one case, 0 elsewhere
-    assert friction["max"] == pytest.approx(0.1) and friction["within_tolerance"] == pytest.approx(0.8)
+    assert friction["max"] == pytest.approx(0.1) and friction["within_tolerance"] == pytest.approx(
+        0.8
+    )
     assert s["errors"]["short_circuit_c"]["max"] == pytest.approx(0.1)
 
 
 def test_compare_flags_only_figures_worse_than_their_tolerance():
     params = parameters.load("default")
-    frame = _frame([{"true_health_friction": "degraded", "health_friction": "degraded",
-                     "true_friction": 2.0, "est_friction": 2.02, "err_friction": 0.02}])
+    frame = _frame(
+        [
+            {
+                "true_health_friction": "degraded",
+                "health_friction": "degraded",
+                "true_friction": 2.0,
+                "est_friction": 2.02,
+                "err_friction": 0.02,
+            }
+        ]
+    )
     base = summarize(frame, params)
     assert compare(base, base) == []
     slightly = json.loads(json.dumps(base))
@@ -293,21 +359,25 @@ def test_baseline_regression_exits_3_and_bad_baseline_exits_2(tiny, tmp_path):
     summary = json.loads((outcome.folder / "summary.json").read_text())
     same = tmp_path / "same.json"
     same.write_text(json.dumps(summary))
-    ok = runner.invoke(app, ["sweep", str(path), "-o", str(outcome.folder), "--resume",
-                             "--baseline", str(same)])
+    ok = runner.invoke(
+        app, ["sweep", str(path), "-o", str(outcome.folder), "--resume", "--baseline", str(same)]
+    )
     assert ok.exit_code == 0 and "no figure worse" in ok.output
     better = json.loads(json.dumps(summary))
     better["errors"]["backlash"]["p95"] = 0.0
     better["false_alarms"]["rate"] = 0.0
     better_path = tmp_path / "better.json"
     better_path.write_text(json.dumps(better))
-    regressed = runner.invoke(app, ["sweep", str(path), "-o", str(outcome.folder), "--resume",
-                                    "--baseline", str(better_path)])
+    regressed = runner.invoke(
+        app,
+        ["sweep", str(path), "-o", str(outcome.folder), "--resume", "--baseline", str(better_path)],
+    )
     assert regressed.exit_code == 3 and "errors.backlash.p95" in regressed.output
     junk = tmp_path / "junk.json"
-    junk.write_text("{\"errors\": 1}")
-    bad = runner.invoke(app, ["sweep", str(path), "-o", str(outcome.folder), "--resume",
-                              "--baseline", str(junk)])
+    junk.write_text('{"errors": 1}')
+    bad = runner.invoke(
+        app, ["sweep", str(path), "-o", str(outcome.folder), "--resume", "--baseline", str(junk)]
+    )
     assert bad.exit_code == 2 and "junk.json" in bad.output
 
 
@@ -321,8 +391,10 @@ def test_regression_campaign_meets_its_committed_baseline(tmp_path):
     rounding moves that case), and a median width within twice the tolerance."""
     campaign = ROOT / "campaigns" / "regression.yaml"
     baseline = ROOT / "campaigns" / "regression-baseline.json"
-    result = runner.invoke(app, ["sweep", str(campaign), "-o", str(tmp_path / "regression"),
-                                 "--baseline", str(baseline)])
+    result = runner.invoke(
+        app,
+        ["sweep", str(campaign), "-o", str(tmp_path / "regression"), "--baseline", str(baseline)],
+    )
     assert result.exit_code == 0, result.output
     summary = json.loads((tmp_path / "regression" / "summary.json").read_text())
     blocks = summary["intervals"]["quantities"]
@@ -338,8 +410,9 @@ def test_regression_campaign_meets_its_committed_baseline(tmp_path):
 @pytest.mark.slow
 def test_no_healthy_actuator_is_flagged_faulty(tmp_path):
     """Figures of merit: 0 of 20 healthy traces flagged faulty (each with its own sensor noise)."""
-    outcome = api.sweep(ROOT / "campaigns" / "false-alarms.yaml", tmp_path / "fa",
-                        show_progress=False)
+    outcome = api.sweep(
+        ROOT / "campaigns" / "false-alarms.yaml", tmp_path / "fa", show_progress=False
+    )
     alarms = outcome.summary["false_alarms"]
     assert alarms["healthy_cases"] == 20 and alarms["flagged"] == 0, alarms
     # a healthy unit on the standard chirp is a conclusive recording: nothing inconclusive
@@ -352,8 +425,10 @@ def test_sweep_workers_import_no_plotting_library():
     import subprocess
     import sys
 
-    code = ("import sys, emaprog.cli, emaprog.campaign.cases; "
-            "print(sorted(m for m in sys.modules if m.split('.')[0] == 'matplotlib'))")
+    code = (
+        "import sys, emaprog.cli, emaprog.campaign.cases; "
+        "print(sorted(m for m in sys.modules if m.split('.')[0] == 'matplotlib'))"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]", out.stdout
 
@@ -384,7 +459,8 @@ def test_unit_spread_and_hinge_moment_draws_keep_old_campaigns_and_stay_in_range
     factors, hinge, _ = sample_unit(robust, 3)
     assert spec.hinge_moment == hinge and spec.commission is not None
     assert spec.unit.spec.mechanical.motor_inertia == pytest.approx(
-        params.spec.mechanical.motor_inertia * factors["motor_inertia"], rel=1e-12)
+        params.spec.mechanical.motor_inertia * factors["motor_inertia"], rel=1e-12
+    )
 
 
 @pytest.mark.slow
@@ -410,4 +486,7 @@ def test_a_small_robustness_campaign_commissions_each_unit_and_stays_within_spec
     assert (abs(cases["est_hinge_moment"] - cases["true_hinge_moment"]) < 5.0).all()
     assert (abs(cases["commission_err_back_emf_constant"]) < 0.08).all()
     assert summary["commissioning"]["back_emf_constant"]["n"] == 4
-    assert cases["low_friction"].notna().all() and (cases["low_friction"] <= cases["est_friction"]).all()
+    assert (
+        cases["low_friction"].notna().all()
+        and (cases["low_friction"] <= cases["est_friction"]).all()
+    )

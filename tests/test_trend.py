@@ -27,8 +27,9 @@ runner = CliRunner()
 USAGE = np.arange(0.0, 2001.0, 250.0)  # [h] nine inspections
 
 
-@pytest.mark.parametrize("law,a,b,threshold", [("linear", 0.05, 4e-4, 1.5),
-                                                ("exponential", 0.02, 1.2e-3, 0.35)])
+@pytest.mark.parametrize(
+    "law,a,b,threshold", [("linear", 0.05, 4e-4, 1.5), ("exponential", 0.02, 1.2e-3, 0.35)]
+)
 def test_noise_free_rul_converges_to_the_true_time_to_threshold(law, a, b, threshold):
     """Exact estimates: the RUL after every inspection is the true one (and its interval
     shrinks to it when the estimates are trusted exactly)."""
@@ -51,9 +52,21 @@ def test_interval_covers_the_truth_in_seeded_synthetic_histories():
     covered, total = 0, 60
     for k in range(total):
         if k % 2:
-            law, a, b, threshold, sigma = "linear", rng.uniform(0.0, 0.2), rng.uniform(2e-4, 6e-4), 1.5, 0.02
+            law, a, b, threshold, sigma = (
+                "linear",
+                rng.uniform(0.0, 0.2),
+                rng.uniform(2e-4, 6e-4),
+                1.5,
+                0.02,
+            )
         else:
-            law, a, b, threshold, sigma = "exponential", rng.uniform(0.01, 0.03), rng.uniform(8e-4, 1.4e-3), 0.35, 0.01
+            law, a, b, threshold, sigma = (
+                "exponential",
+                rng.uniform(0.01, 0.03),
+                rng.uniform(8e-4, 1.4e-3),
+                0.35,
+                0.01,
+            )
         truth = growth(law, USAGE, a, b)
         estimates = truth + rng.normal(0.0, sigma, USAGE.size)
         p = predict(USAGE, estimates, threshold, seed=k, noise_floor=sigma)
@@ -99,8 +112,12 @@ def test_each_inspections_own_uncertainty_widens_or_narrows_the_rul(params):
     inspections were four times less certain than the campaign figure gives a wider 90 % RUL
     interval than one twice as certain (same estimates; at least 1.5x wider, measured ~3x),
     and the report says whose uncertainty it used."""
-    severity = {"friction": 0.1 + 4e-4 * USAGE, "backlash": np.zeros(USAGE.size),
-                "short_circuit": np.zeros(USAGE.size), "eccentricity": np.zeros(USAGE.size)}
+    severity = {
+        "friction": 0.1 + 4e-4 * USAGE,
+        "backlash": np.zeros(USAGE.size),
+        "short_circuit": np.zeros(USAGE.size),
+        "eccentricity": np.zeros(USAGE.size),
+    }
     campaign = FAULTS["friction"].identification_sigma
     widths = {}
     for label, sigma in (("sure", 0.5 * campaign), ("unsure", 4.0 * campaign)):
@@ -115,10 +132,16 @@ def test_each_inspections_own_uncertainty_widens_or_narrows_the_rul(params):
 
 # ---------------------------------------------------------------- inputs and CLI
 def _write_table(path, actuators=("ema-7",), usage=USAGE, drop=None):
-    columns = {"actuator": [actuators[k % len(actuators)] for k in range(usage.size)],
-               "usage": usage, "friction": 1.1 + 3e-4 * usage, "backlash": np.zeros(usage.size),
-               "short_circuit_a": np.zeros(usage.size), "short_circuit_b": 0.01 * np.exp(1e-3 * usage),
-               "short_circuit_c": np.zeros(usage.size), "eccentricity_zeta": np.zeros(usage.size)}
+    columns = {
+        "actuator": [actuators[k % len(actuators)] for k in range(usage.size)],
+        "usage": usage,
+        "friction": 1.1 + 3e-4 * usage,
+        "backlash": np.zeros(usage.size),
+        "short_circuit_a": np.zeros(usage.size),
+        "short_circuit_b": 0.01 * np.exp(1e-3 * usage),
+        "short_circuit_c": np.zeros(usage.size),
+        "eccentricity_zeta": np.zeros(usage.size),
+    }
     if drop:
         columns.pop(drop)
     pq.write_table(pa.table(columns), path)
@@ -137,13 +160,16 @@ def test_trend_of_a_history_table_writes_report_and_figure(tmp_path):
     assert "RUL" in (tmp_path / "t" / "trend.md").read_text()
 
 
-@pytest.mark.parametrize("case,kwargs,fragment", [
-    ("unsorted usage", {"usage": USAGE[::-1].copy()}, "sorted by usage"),
-    ("repeated usage", {"usage": np.array([0.0, 250.0, 250.0, 500.0])}, "sorted by usage"),
-    ("mixed actuators", {"actuators": ("ema-7", "ema-8")}, "actuators"),
-    ("missing fault", {"drop": "short_circuit_b"}, "short_circuit_b"),
-    ("too short", {"usage": np.array([0.0, 250.0])}, "at least 3"),
-])
+@pytest.mark.parametrize(
+    "case,kwargs,fragment",
+    [
+        ("unsorted usage", {"usage": USAGE[::-1].copy()}, "sorted by usage"),
+        ("repeated usage", {"usage": np.array([0.0, 250.0, 250.0, 500.0])}, "sorted by usage"),
+        ("mixed actuators", {"actuators": ("ema-7", "ema-8")}, "actuators"),
+        ("missing fault", {"drop": "short_circuit_b"}, "short_circuit_b"),
+        ("too short", {"usage": np.array([0.0, 250.0])}, "at least 3"),
+    ],
+)
 def test_bad_histories_exit_2_with_a_clear_message(tmp_path, case, kwargs, fragment):
     path = _write_table(tmp_path / "bad.parquet", **kwargs)
     result = runner.invoke(app, ["trend", str(path)])
@@ -165,13 +191,21 @@ def test_simulated_history_end_to_end_and_resumable(tmp_path):
 
     Short scenario and GA: the chain is tested here, accuracy in the tests above."""
     history = {
-        "name": "tiny-history", "actuator": "ema-t", "seed": 5,
-        "scenario": {"name": "tiny", "duration": 0.25, "seed": 0,
-                     "command": {"kind": "sine", "amplitude": 0.05, "frequency": 4.0}},
+        "name": "tiny-history",
+        "actuator": "ema-t",
+        "seed": 5,
+        "scenario": {
+            "name": "tiny",
+            "duration": 0.25,
+            "seed": 0,
+            "command": {"kind": "sine", "amplitude": 0.05, "frequency": 4.0},
+        },
         "inspections": {"start": 0.0, "step": 500.0, "count": 4},
         "growth": {"friction": {"law": "linear", "initial": 0.1, "rate": 5e-4}},
-        "identify": {"ga": {"population": 24, "generations": 8},
-                     "estimate": ["friction", "backlash"]},
+        "identify": {
+            "ga": {"population": 24, "generations": 8},
+            "estimate": ["friction", "backlash"],
+        },
     }
     path = tmp_path / "history.yaml"
     path.write_text(yaml.safe_dump(history))
@@ -192,14 +226,22 @@ def test_simulated_history_end_to_end_and_resumable(tmp_path):
     assert refused.exit_code == 2 and "--resume" in refused.output
 
 
-@pytest.mark.parametrize("change,fragment", [
-    ({"growth": {"friction": {"law": "cubic", "initial": 0.1, "rate": 1e-4}}}, "growth.friction.law"),
-    ({"growth": {}}, "at least one fault"),
-    ({"inspections": {"step": 250.0, "count": 2}}, "inspections.count"),
-    ({"growth": {"short_circuit": {"law": "linear", "initial": 0.0, "rate": 1e-4}}},
-     "growth.short_circuit.phase"),
-    ({"surprise": 1}, "unknown key 'surprise'"),
-])
+@pytest.mark.parametrize(
+    "change,fragment",
+    [
+        (
+            {"growth": {"friction": {"law": "cubic", "initial": 0.1, "rate": 1e-4}}},
+            "growth.friction.law",
+        ),
+        ({"growth": {}}, "at least one fault"),
+        ({"inspections": {"step": 250.0, "count": 2}}, "inspections.count"),
+        (
+            {"growth": {"short_circuit": {"law": "linear", "initial": 0.0, "rate": 1e-4}}},
+            "growth.short_circuit.phase",
+        ),
+        ({"surprise": 1}, "unknown key 'surprise'"),
+    ],
+)
 def test_bad_history_yaml_is_refused_with_its_key(tmp_path, change, fragment):
     from .conftest import CONFIGS
 
@@ -208,7 +250,10 @@ def test_bad_history_yaml_is_refused_with_its_key(tmp_path, change, fragment):
     data.update(change)
     path = tmp_path / "history.yaml"
     path.write_text(yaml.safe_dump(data))
-    for args in (["check", str(path)], ["trend", str(path), "--simulate", "-o", str(tmp_path / "o")]):
+    for args in (
+        ["check", str(path)],
+        ["trend", str(path), "--simulate", "-o", str(tmp_path / "o")],
+    ):
         result = runner.invoke(app, args)
         assert result.exit_code == 2 and fragment in result.output, result.output
     assert not (tmp_path / "o").exists()

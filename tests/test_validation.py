@@ -46,21 +46,44 @@ CASES = [
     ("infinity", mutate(["faults", "friction"], float("inf")), ["faults.friction"]),
     ("negative duration", mutate(["duration"], -1.0), ["duration"]),
     ("friction out of range", mutate(["faults", "friction"], 50.0), ["faults.friction"]),
-    ("shorted fraction >= 1", mutate(["faults", "short_circuit", "a"], 1.0), ["faults.short_circuit.a"]),
-    ("eccentricity out of range", mutate(["faults", "eccentricity", "zeta"], 1.5),
-     ["faults.eccentricity.zeta"]),
-    ("chirp without end frequency", mutate(["command", "end_frequency"], delete=True),
-     ["command", "end_frequency"]),
+    (
+        "shorted fraction >= 1",
+        mutate(["faults", "short_circuit", "a"], 1.0),
+        ["faults.short_circuit.a"],
+    ),
+    (
+        "eccentricity out of range",
+        mutate(["faults", "eccentricity", "zeta"], 1.5),
+        ["faults.eccentricity.zeta"],
+    ),
+    (
+        "chirp without end frequency",
+        mutate(["command", "end_frequency"], delete=True),
+        ["command", "end_frequency"],
+    ),
     ("unknown command kind", mutate(["command", "kind"], "square"), ["command", "square"]),
     ("unknown load kind", mutate(["load"], {"kind": "gust"}), ["load"]),
-    ("bounds reversed", mutate(["identify", "bounds", "friction"], [3.0, 1.0]),
-     ["identify.bounds.friction", "below"]),
-    ("bounds outside limits", mutate(["identify", "bounds", "backlash"], [0.0, 1.0]),
-     ["identify.bounds.backlash"]),
-    ("unknown fault to estimate", mutate(["identify", "estimate"], ["friction", "wear"]),
-     ["identify.estimate"]),
+    (
+        "bounds reversed",
+        mutate(["identify", "bounds", "friction"], [3.0, 1.0]),
+        ["identify.bounds.friction", "below"],
+    ),
+    (
+        "bounds outside limits",
+        mutate(["identify", "bounds", "backlash"], [0.0, 1.0]),
+        ["identify.bounds.backlash"],
+    ),
+    (
+        "unknown fault to estimate",
+        mutate(["identify", "estimate"], ["friction", "wear"]),
+        ["identify.estimate"],
+    ),
     ("all weights zero", mutate(["identify", "signals"], {"current": 0.0}), ["identify.signals"]),
-    ("population too small", mutate(["identify", "ga", "population"], 2), ["identify.ga.population"]),
+    (
+        "population too small",
+        mutate(["identify", "ga", "population"], 2),
+        ["identify.ga.population"],
+    ),
     ("unsafe name", mutate(["name"], "../etc"), ["name"]),
     ("unknown parameter set", mutate(["parameters"], "nonexistent"), ["parameters", "default"]),
     ("missing required key", mutate(["command"], delete=True), ["command"]),
@@ -109,14 +132,24 @@ def test_shipped_configs_and_campaigns_are_valid():
 
 def test_campaign_errors_name_the_key(tmp_path):
     path = tmp_path / "camp.yaml"
-    path.write_text(yaml.safe_dump({"name": "c", "cases": 5, "scenario": str(CONFIGS / "chirp-nominal.yaml"),
-                                    "faults": {"healthy_fraction": 1.5}}))
+    path.write_text(
+        yaml.safe_dump(
+            {
+                "name": "c",
+                "cases": 5,
+                "scenario": str(CONFIGS / "chirp-nominal.yaml"),
+                "faults": {"healthy_fraction": 1.5},
+            }
+        )
+    )
     result = runner.invoke(app, ["check", str(path)])
     assert result.exit_code == 2 and "faults.healthy_fraction" in result.output
 
 
 def test_identify_refuses_missing_corrupt_and_foreign_traces(tmp_path):
-    missing = runner.invoke(app, ["identify", str(tmp_path / "none.parquet"), "-o", str(tmp_path / "r")])
+    missing = runner.invoke(
+        app, ["identify", str(tmp_path / "none.parquet"), "-o", str(tmp_path / "r")]
+    )
     assert missing.exit_code == 2 and "not found" in missing.output
     corrupt = tmp_path / "corrupt.parquet"
     corrupt.write_bytes(b"PAR1" + b"\x00" * 64)

@@ -57,10 +57,18 @@ def test_a_fault_seen_at_one_inspection_gets_no_remaining_useful_life(tmp_path):
 
     import pandas as pd
 
-    table = pd.DataFrame({"actuator": ["ema-7"] * 3, "usage": [0.0, 500.0, 1000.0],
-                          "friction": [1.01, 0.99, 1.6], "backlash": [0.0] * 3,
-                          "short_circuit_a": [0.0] * 3, "short_circuit_b": [0.0] * 3,
-                          "short_circuit_c": [0.0] * 3, "eccentricity_zeta": [0.0] * 3})
+    table = pd.DataFrame(
+        {
+            "actuator": ["ema-7"] * 3,
+            "usage": [0.0, 500.0, 1000.0],
+            "friction": [1.01, 0.99, 1.6],
+            "backlash": [0.0] * 3,
+            "short_circuit_a": [0.0] * 3,
+            "short_circuit_b": [0.0] * 3,
+            "short_circuit_c": [0.0] * 3,
+            "eccentricity_zeta": [0.0] * 3,
+        }
+    )
     table.to_parquet(tmp_path / "history.parquet")
     result = emaprog.trend(tmp_path / "history.parquet", tmp_path / "trend")
     friction = result.faults["friction"]
@@ -82,8 +90,11 @@ def test_a_short_circuit_split_between_two_phases_names_neither():
     assert MIN_PHASE_CONFIDENCE == 0.9
     assert named_phase(values, True, split) is None
     assert named_phase(values, True, clear) == "a" and named_phase(values, False, clear) is None
-    report = {"health": {"short_circuit": "incipient"}, "short_circuit_phase": None,
-              "confidence": {"isolation": split}}
+    report = {
+        "health": {"short_circuit": "incipient"},
+        "short_circuit_phase": None,
+        "confidence": {"isolation": split},
+    }
     assert "phase not determined: A or B" in _phase_sentence(report)
 
 

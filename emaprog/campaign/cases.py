@@ -121,8 +121,10 @@ def _fault_value(fault: Fault, dist, draws: tuple):
         value[phase] = _scaled(dist.fraction, draws[1], 0.0)
         return value
     magnitude, angle = fault.quantities
-    return {magnitude.key: _scaled(dist.zeta, draws[0], magnitude.healthy),
-            angle.key: _scaled(dist.phase, draws[1], angle.healthy)}
+    return {
+        magnitude.key: _scaled(dist.zeta, draws[0], magnitude.healthy),
+        angle.key: _scaled(dist.phase, draws[1], angle.healthy),
+    }
 
 
 def sample_case(campaign: Campaign, case_id: int) -> tuple[bool, Faults, int, int]:
@@ -139,8 +141,9 @@ def sample_case(campaign: Campaign, case_id: int) -> tuple[bool, Faults, int, in
     noise_seed, ga_seed = (int(s) for s in rng.integers(0, SEED_LIMIT, size=2))
     if healthy:
         return True, Faults(), noise_seed, ga_seed
-    faults = Faults.model_validate({f.name: _fault_value(f, getattr(d, f.name), draws[f.name])
-                                    for f in CATALOGUE})
+    faults = Faults.model_validate(
+        {f.name: _fault_value(f, getattr(d, f.name), draws[f.name]) for f in CATALOGUE}
+    )
     return False, faults, noise_seed, ga_seed
 
 
@@ -159,41 +162,81 @@ def sample_unit(campaign: Campaign, case_id: int) -> tuple[dict[str, float], flo
     spread = {name: rng.random() for name in SPREAD_PARAMETERS}
     hinge_u, commission_hinge_u = rng.random(), rng.random()
     commission_seed = int(rng.integers(0, SEED_LIMIT))
-    factors = {name: 1.0 + _scaled(getattr(campaign.actuator_spread, name), u, 0.0)
-               for name, u in spread.items()}
+    factors = {
+        name: 1.0 + _scaled(getattr(campaign.actuator_spread, name), u, 0.0)
+        for name, u in spread.items()
+    }
     hinge = _scaled(campaign.hinge_moment, hinge_u, 0.0)
-    return factors, hinge, Commissioning(commission_seed,
-                                         _scaled(campaign.hinge_moment, commission_hinge_u, 0.0))
+    return (
+        factors,
+        hinge,
+        Commissioning(commission_seed, _scaled(campaign.hinge_moment, commission_hinge_u, 0.0)),
+    )
 
 
-def case_specs(campaign: Campaign, base: Scenario, params: Parameters, campaign_hash: str,
-               case_ids: Iterable[int]) -> Iterator[CaseSpec]:
+def case_specs(
+    campaign: Campaign,
+    base: Scenario,
+    params: Parameters,
+    campaign_hash: str,
+    case_ids: Iterable[int],
+) -> Iterator[CaseSpec]:
     """The specs of the given cases (lazily: a large campaign is never all in memory)."""
     settings = identify_settings(campaign, base)
     for case_id in case_ids:
         healthy, faults, noise_seed, ga_seed = sample_case(campaign, case_id)
-        spec = make_spec(case_id, healthy, f"{campaign.name}-case-{case_id}", base, faults,
-                         noise_seed, ga_seed, settings, params, campaign_hash)
+        spec = make_spec(
+            case_id,
+            healthy,
+            f"{campaign.name}-case-{case_id}",
+            base,
+            faults,
+            noise_seed,
+            ga_seed,
+            settings,
+            params,
+            campaign_hash,
+        )
         factors, hinge, commissioning = sample_unit(campaign, case_id)
         spread = {k: f for k, f in factors.items() if f != 1.0}
-        unit = (parameter_sets.scaled(params, spread, f"{campaign.name}-case-{case_id} unit")
-                if spread else None)
-        yield spec._replace(unit=unit, hinge_moment=hinge,
-                            commission=commissioning if campaign.commission else None)
+        unit = (
+            parameter_sets.scaled(params, spread, f"{campaign.name}-case-{case_id} unit")
+            if spread
+            else None
+        )
+        yield spec._replace(
+            unit=unit, hinge_moment=hinge, commission=commissioning if campaign.commission else None
+        )
 
 
-def make_spec(case_id: int, healthy: bool, name: str, base: Scenario, faults: Faults,
-              noise_seed: int, ga_seed: int, settings: IdentifySettings, params: Parameters,
-              digest: str) -> CaseSpec:
+def make_spec(
+    case_id: int,
+    healthy: bool,
+    name: str,
+    base: Scenario,
+    faults: Faults,
+    noise_seed: int,
+    ga_seed: int,
+    settings: IdentifySettings,
+    params: Parameters,
+    digest: str,
+) -> CaseSpec:
     """One case: the base scenario with these faults and noise seed, the GA with its seed."""
-    scenario = Scenario.model_validate({
-        **base.model_dump(mode="json"), "name": name, "seed": noise_seed,
-        "faults": faults.model_dump(mode="json"), "identify": settings.model_dump(mode="json"),
-    })
-    case_settings = IdentifySettings.model_validate({
-        **settings.model_dump(mode="json"),
-        "ga": {**settings.ga.model_dump(mode="json"), "seed": ga_seed},
-    })
+    scenario = Scenario.model_validate(
+        {
+            **base.model_dump(mode="json"),
+            "name": name,
+            "seed": noise_seed,
+            "faults": faults.model_dump(mode="json"),
+            "identify": settings.model_dump(mode="json"),
+        }
+    )
+    case_settings = IdentifySettings.model_validate(
+        {
+            **settings.model_dump(mode="json"),
+            "ga": {**settings.ga.model_dump(mode="json"), "seed": ga_seed},
+        }
+    )
     return CaseSpec(case_id, healthy, scenario, params, case_settings, digest)
 
 
@@ -209,8 +252,7 @@ def with_hinge(scenario: Scenario, hinge_moment: float) -> Scenario:
     return Scenario.model_validate({**scenario.model_dump(mode="json"), "load": load})
 
 
-def commission_case(spec: CaseSpec,
-                    unit: Parameters) -> tuple[Parameters, dict, ResidualRecording]:
+def commission_case(spec: CaseSpec, unit: Parameters) -> tuple[Parameters, dict, ResidualRecording]:
     """Commission the case's unit from its own healthy recording.
 
     Returns the commissioned set, the row's commissioning columns and the recording's
@@ -220,28 +262,46 @@ def commission_case(spec: CaseSpec,
     from ..fitting import commission as commissioning
 
     assert spec.commission is not None  # the case commissions its unit
-    healthy = Scenario.model_validate({**spec.scenario.model_dump(mode="json"),
-                                       "faults": Faults().model_dump(mode="json"),
-                                       "seed": spec.commission.seed})
+    healthy = Scenario.model_validate(
+        {
+            **spec.scenario.model_dump(mode="json"),
+            "faults": Faults().model_dump(mode="json"),
+            "seed": spec.commission.seed,
+        }
+    )
     recording = reference.simulate(with_hinge(healthy, spec.commission.hinge_moment), unit)
     prepared = commissioning.prepare(recording, f"case {spec.case_id} commissioning", spec.params)
     fit = commissioning.fit([prepared], spec.params)
     commissioning.check_explained(fit, [prepared])
     commissioned = parameter_sets.scaled(
-        spec.params, {k: fit.values[k] / fit.base[k] for k in fit.values},
-        f"case {spec.case_id} commissioned unit")
+        spec.params,
+        {k: fit.values[k] / fit.base[k] for k in fit.values},
+        f"case {spec.case_id} commissioned unit",
+    )
     true = {**unit.spec.electrical.model_dump(), **unit.spec.mechanical.model_dump()}
-    row: dict[str, float | str] = {f"commission_err_{k}": float(v / true[k] - 1.0)
-                                   for k, v in fit.values.items()}
+    row: dict[str, float | str] = {
+        f"commission_err_{k}": float(v / true[k] - 1.0) for k, v in fit.values.items()
+    }
     row["commission_err_hinge_moment"] = float(fit.hinge_moments[0] - spec.commission.hinge_moment)
     row["commission_undetermined"] = ",".join(fit.not_determined)
     # the fit's own (linearised) relative standard errors, NaN where held: what the
     # commissioning model-error floors are calibrated from (benchmarks/commission_errors.py)
-    row.update({f"commission_se_{k}": float(fit.standard_errors[k] / v) if k in fit.standard_errors
-                else float("nan") for k, v in fit.values.items()})
+    row.update(
+        {
+            f"commission_se_{k}": float(fit.standard_errors[k] / v)
+            if k in fit.standard_errors
+            else float("nan")
+            for k, v in fit.values.items()
+        }
+    )
     row["commission_se_hinge_moment"] = float(fit.hinge_errors[0])
-    residual = recording_residual(recording, prepared.inputs, commissioned, fit.hinge_moments[0],
-                                  f"case {spec.case_id} commissioning")
+    residual = recording_residual(
+        recording,
+        prepared.inputs,
+        commissioned,
+        fit.hinge_moments[0],
+        f"case {spec.case_id} commissioning",
+    )
     return commissioned, row, residual
 
 
@@ -263,16 +323,27 @@ def run_case(spec: CaseSpec) -> dict:
         recordings = [residual]
     commissioned = time.perf_counter()
     inp = inputs(spec.scenario, params)
-    settings = resolve_settings(spec.settings, trace.metadata, params,
-                                real_unit=spec.unit is not None or spec.commission is not None
-                                ).settings
-    result = identify_trace(trace, inp, params, settings, show_progress=False,
-                            recordings=recordings, commissioned=spec.commission is not None)
+    settings = resolve_settings(
+        spec.settings,
+        trace.metadata,
+        params,
+        real_unit=spec.unit is not None or spec.commission is not None,
+    ).settings
+    result = identify_trace(
+        trace,
+        inp,
+        params,
+        settings,
+        show_progress=False,
+        recordings=recordings,
+        commissioned=spec.commission is not None,
+    )
     truth = flatten(spec.scenario.faults)
     error = verdicts.errors(result.estimate, truth)
     confidence = result.confidence
-    health = verdicts.health(result.estimate, spec.settings.estimate, spec.params,
-                             confidence.inconclusive)
+    health = verdicts.health(
+        result.estimate, spec.settings.estimate, spec.params, confidence.inconclusive
+    )
     true_health = verdicts.health(truth, list(FAULT_NAMES), spec.params)
     row: dict = {
         "case_id": spec.case_id,
@@ -293,43 +364,59 @@ def run_case(spec: CaseSpec) -> dict:
     for fault in FAULT_NAMES:
         row[f"health_{fault}"] = health.get(fault, "not estimated")
         row[f"true_health_{fault}"] = true_health[fault]
-    row.update({
-        f"true_{PHASE_FAULT}_phase": worst_phase(truth) or "none",
-        f"est_{PHASE_FAULT}_phase": _detected_phase(result.estimate, health,
-                                                    confidence.isolation),
-        "fitness": float(result.fitness),
-        "correction": result.objective.correction.applied,
-        "floor_ratio": float(confidence.floor.ratio),
-        "fault_load": float(confidence.fault_load),
-        "twin": bool(confidence.twin),
-        "basis": confidence.basis,
-        "echo": bool(confidence.echo),
-        **{f"echo_{q}": float((confidence.echo or {}).get("errors", {}).get(q, nan))
-           for q in QUANTITIES},
-        "isolation_confidence": float(confidence.isolation["confidence"])
-        if confidence.isolation else nan,
-        "evaluations": int(result.evaluations),
-        "generations": int(result.generations),
-        "simulate_s": simulated - start,
-        "identify_s": result.elapsed_s,
-        "true_hinge_moment": float(spec.hinge_moment),
-        **{f"est_{name}": float(result.estimate[name]) if name in (settings.nuisances or [])
-           else float("nan") for name in NUISANCE_DEFAULTS},
-        **{f"{column}_{name}": float(errors.get(name, float("nan")))
-           for name in NUISANCE_DEFAULTS
-           for column, errors in (("se", confidence.standard_error),
-                                  ("sigma", confidence.linear_error))},
-        # the winding resistance the identification should find, over the set it uses
-        "true_resistance_factor": float(unit.spec.electrical.phase_resistance
-                                        / params.spec.electrical.phase_resistance),
-    })
+    row.update(
+        {
+            f"true_{PHASE_FAULT}_phase": worst_phase(truth) or "none",
+            f"est_{PHASE_FAULT}_phase": _detected_phase(
+                result.estimate, health, confidence.isolation
+            ),
+            "fitness": float(result.fitness),
+            "correction": result.objective.correction.applied,
+            "floor_ratio": float(confidence.floor.ratio),
+            "fault_load": float(confidence.fault_load),
+            "twin": bool(confidence.twin),
+            "basis": confidence.basis,
+            "echo": bool(confidence.echo),
+            **{
+                f"echo_{q}": float((confidence.echo or {}).get("errors", {}).get(q, nan))
+                for q in QUANTITIES
+            },
+            "isolation_confidence": float(confidence.isolation["confidence"])
+            if confidence.isolation
+            else nan,
+            "evaluations": int(result.evaluations),
+            "generations": int(result.generations),
+            "simulate_s": simulated - start,
+            "identify_s": result.elapsed_s,
+            "true_hinge_moment": float(spec.hinge_moment),
+            **{
+                f"est_{name}": float(result.estimate[name])
+                if name in (settings.nuisances or [])
+                else float("nan")
+                for name in NUISANCE_DEFAULTS
+            },
+            **{
+                f"{column}_{name}": float(errors.get(name, float("nan")))
+                for name in NUISANCE_DEFAULTS
+                for column, errors in (
+                    ("se", confidence.standard_error),
+                    ("sigma", confidence.linear_error),
+                )
+            },
+            # the winding resistance the identification should find, over the set it uses
+            "true_resistance_factor": float(
+                unit.spec.electrical.phase_resistance / params.spec.electrical.phase_resistance
+            ),
+        }
+    )
     if spec.commission is not None:
         row.update(commission_row, commission_s=commissioned - simulated)
     return row
 
 
-def _detected_phase(estimate: dict[str, float], health: dict[str, str],
-                    isolation: dict | None = None) -> str:
+def _detected_phase(
+    estimate: dict[str, float], health: dict[str, str], isolation: dict | None = None
+) -> str:
     """The phase named faulty (:func:`~emaprog.identification.confidence.named_phase`)."""
     from ..identification.confidence import named_phase
 
@@ -399,19 +486,29 @@ class CaseStore:
             try:
                 stored = json.loads(self.manifest.read_text())["content_hash"]
             except (json.JSONDecodeError, KeyError, UnicodeDecodeError):
-                raise InputError(self.manifest, "is not a readable campaign manifest; "
-                                 "choose another results folder") from None
+                raise InputError(
+                    self.manifest,
+                    "is not a readable campaign manifest; choose another results folder",
+                ) from None
             if not resume:
-                raise InputError(self.folder, "already holds a campaign's results; pass --resume to "
-                                 "continue it, or choose another results folder (-o)")
+                raise InputError(
+                    self.folder,
+                    "already holds a campaign's results; pass --resume to "
+                    "continue it, or choose another results folder (-o)",
+                )
             if stored != digest:
-                raise InputError(source, "changed since the first run in "
-                                 f"{self.folder} (campaign, base scenario or parameter values "
-                                 "differ); --resume only continues the same campaign: use another "
-                                 "results folder (-o)")
+                raise InputError(
+                    source,
+                    "changed since the first run in "
+                    f"{self.folder} (campaign, base scenario or parameter values "
+                    "differ); --resume only continues the same campaign: use another "
+                    "results folder (-o)",
+                )
         elif self.finished():
-            raise InputError(self.folder, "holds case files but no manifest.json; "
-                             "choose another results folder (-o)")
+            raise InputError(
+                self.folder,
+                "holds case files but no manifest.json; choose another results folder (-o)",
+            )
         self.cases.mkdir(parents=True, exist_ok=True)
         for stale in self.cases.glob(".case-*"):  # temporaries of a killed run
             stale.unlink()
@@ -437,8 +534,9 @@ class CaseStore:
 
     def write_failure(self, failure: Failure) -> Path:
         self.failures.mkdir(parents=True, exist_ok=True)
-        return write_json(self.failures / f"{CASE_FILE.format(failure.case_id)}.json",
-                          failure._asdict())
+        return write_json(
+            self.failures / f"{CASE_FILE.format(failure.case_id)}.json", failure._asdict()
+        )
 
     def read(self) -> pd.DataFrame:
         """All finished cases, sorted by case id."""
@@ -479,8 +577,12 @@ def run_local(specs: Iterable[CaseSpec], workers: int, on_result: OnResult) -> N
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
     threads = max(1, (os.cpu_count() or 1) // workers)
-    pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
-                               initializer=_worker_init, initargs=(threads,))
+    pool = ProcessPoolExecutor(
+        workers,
+        mp_context=multiprocessing.get_context("spawn"),
+        initializer=_worker_init,
+        initargs=(threads,),
+    )
     pending: set = set()
     queue = iter(specs)
     try:
@@ -530,23 +632,33 @@ def connect(address: str):
     try:
         from distributed import Client
     except ImportError:
-        raise InputError("--scheduler", "needs the dask[distributed] package "
-                         "(pip install 'dask[distributed]')") from None
+        raise InputError(
+            "--scheduler", "needs the dask[distributed] package (pip install 'dask[distributed]')"
+        ) from None
     try:
         return Client(address, timeout="5s", set_as_default=False)
     except (OSError, TimeoutError, ValueError) as exc:
-        raise InputError("--scheduler", f"cannot reach a Dask scheduler at '{address}' "
-                         f"({type(exc).__name__}: {exc}); give tcp://HOST:PORT of a running "
-                         "scheduler") from None
+        raise InputError(
+            "--scheduler",
+            f"cannot reach a Dask scheduler at '{address}' "
+            f"({type(exc).__name__}: {exc}); give tcp://HOST:PORT of a running "
+            "scheduler",
+        ) from None
 
 
 def run_dask(specs: Iterable[CaseSpec], client, on_result: OnResult) -> None:
     """The same cases as tasks of a Dask cluster (``client`` from :func:`connect`)."""
     from distributed import as_completed
 
-    futures = [client.submit(run_case_on_dask, spec, pure=False,
-                             key=f"emaprog-{spec.campaign_hash[:12]}-{spec.case_id}")
-               for spec in specs]
+    futures = [
+        client.submit(
+            run_case_on_dask,
+            spec,
+            pure=False,
+            key=f"emaprog-{spec.campaign_hash[:12]}-{spec.case_id}",
+        )
+        for spec in specs
+    ]
     try:
         for future in as_completed(futures, loop=client.loop):
             on_result(future.result())
@@ -564,9 +676,17 @@ def worker_count(requested: int | None, cases: int) -> int:
     return max(1, min(requested or os.cpu_count() or 1, cases or 1))
 
 
-def execute(specs: Iterable[CaseSpec], store: CaseStore, provenance: dict, count: int,
-            workers: int, client, label: str, already: int,
-            show_progress: bool = True) -> dict[str, int]:
+def execute(
+    specs: Iterable[CaseSpec],
+    store: CaseStore,
+    provenance: dict,
+    count: int,
+    workers: int,
+    client,
+    label: str,
+    already: int,
+    show_progress: bool = True,
+) -> dict[str, int]:
     """Run ``count`` cases on the chosen back-end, storing each as it finishes.
 
     ``client`` (a Dask client) wins over ``workers``; one worker runs the cases
@@ -595,8 +715,10 @@ def execute(specs: Iterable[CaseSpec], store: CaseStore, provenance: dict, count
             else:
                 run_local(specs, workers, on_result)
         except KeyboardInterrupt:
-            raise Interrupted(f"{already + counts['done']} cases are stored in {store.cases}; "
-                              "run the same command with --resume to finish") from None
+            raise Interrupted(
+                f"{already + counts['done']} cases are stored in {store.cases}; "
+                "run the same command with --resume to finish"
+            ) from None
     return counts
 
 

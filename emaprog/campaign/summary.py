@@ -51,8 +51,10 @@ def error_values(frame: pd.DataFrame, quantity: str, params: Parameters) -> np.n
         err = err / frame[f"true_{quantity}"].to_numpy(float)
     if QUANTITIES[quantity].circular:
         fault = next(f for f in CATALOGUE if quantity in {q.name for q in f.quantities})
-        true_severity = np.max([np.abs(frame[f"true_{q.name}"].to_numpy(float) - q.healthy)
-                                for q in fault.magnitudes], axis=0)  # faults.severity, per row
+        true_severity = np.max(
+            [np.abs(frame[f"true_{q.name}"].to_numpy(float) - q.healthy) for q in fault.magnitudes],
+            axis=0,
+        )  # faults.severity, per row
         err = err[true_severity >= getattr(params.spec.health, fault.name).incipient]
     return err[np.isfinite(err)]
 
@@ -60,19 +62,31 @@ def error_values(frame: pd.DataFrame, quantity: str, params: Parameters) -> np.n
 def _statistics(err: np.ndarray, accuracy: Accuracy, unit: str) -> dict:
     size = int(err.size)
     if size == 0:
-        return {"n": 0, "measure": accuracy.measure, "unit": unit, "tolerance": accuracy.tolerance,
-                "bias": None, "mean": None, "median": None, "p95": None, "max": None,
-                "within_tolerance": None}
+        return {
+            "n": 0,
+            "measure": accuracy.measure,
+            "unit": unit,
+            "tolerance": accuracy.tolerance,
+            "bias": None,
+            "mean": None,
+            "median": None,
+            "p95": None,
+            "max": None,
+            "within_tolerance": None,
+        }
     magnitude = np.abs(err)
-    within = (None if accuracy.tolerance is None
-              else float(np.mean(magnitude <= accuracy.tolerance)))
+    within = None if accuracy.tolerance is None else float(np.mean(magnitude <= accuracy.tolerance))
     return {
-        "n": size, "measure": accuracy.measure,
+        "n": size,
+        "measure": accuracy.measure,
         "unit": "-" if accuracy.measure == "relative" else unit,
         "tolerance": accuracy.tolerance,
-        "bias": float(np.mean(err)), "mean": float(np.mean(magnitude)),
-        "median": float(np.median(magnitude)), "p95": float(np.percentile(magnitude, 95)),
-        "max": float(np.max(magnitude)), "within_tolerance": within,
+        "bias": float(np.mean(err)),
+        "mean": float(np.mean(magnitude)),
+        "median": float(np.median(magnitude)),
+        "p95": float(np.percentile(magnitude, 95)),
+        "max": float(np.max(magnitude)),
+        "within_tolerance": within,
     }
 
 
@@ -94,14 +108,19 @@ def summarize(frame: pd.DataFrame, params: Parameters) -> dict:
     * isolation: true faulty phase (largest shorted fraction at or above the
       incipient threshold, else "none") against the phase the verdict named.
     """
-    errors = {q: _statistics(error_values(frame, q, params), ACCURACY[q], QUANTITIES[q].unit)
-              for q in QUANTITIES}
+    errors = {
+        q: _statistics(error_values(frame, q, params), ACCURACY[q], QUANTITIES[q].unit)
+        for q in QUANTITIES
+    }
     detection, absent_alarms = {}, {}
     for fault in FAULT_NAMES:
         flagged = frame[f"health_{fault}"].isin(["incipient", "degraded"])
         present = frame[f"true_health_{fault}"] != "nominal"
-        detection[fault] = {"cases": int(present.sum()), "detected": int((flagged & present).sum()),
-                            "rate": _rate(int((flagged & present).sum()), int(present.sum()))}
+        detection[fault] = {
+            "cases": int(present.sum()),
+            "detected": int((flagged & present).sum()),
+            "rate": _rate(int((flagged & present).sum()), int(present.sum())),
+        }
         absent_alarms[fault] = _rate(int((flagged & ~present).sum()), int((~present).sum()))
     healthy = frame[frame["healthy_case"]]
     flags = {f: healthy[f"health_{f}"].isin(["incipient", "degraded"]) for f in FAULT_NAMES}
@@ -114,8 +133,9 @@ def summarize(frame: pd.DataFrame, params: Parameters) -> dict:
         "per_fault_where_absent": absent_alarms,
     }
     confusion = {t: {e: 0 for e in PHASE_NAMES} for t in PHASE_NAMES}
-    true_phase = np.where(frame[f"true_health_{PHASE_FAULT}"] != "nominal",
-                          frame[f"true_{PHASE_FAULT}_phase"], "none")
+    true_phase = np.where(
+        frame[f"true_health_{PHASE_FAULT}"] != "nominal", frame[f"true_{PHASE_FAULT}_phase"], "none"
+    )
     for t, e in zip(true_phase, frame[f"est_{PHASE_FAULT}_phase"]):
         confusion[t][e] += 1
     faulty = [t for t in true_phase if t != "none"]
@@ -128,8 +148,11 @@ def summarize(frame: pd.DataFrame, params: Parameters) -> dict:
         "nuisance": _nuisance(frame),
         "detection": detection,
         "false_alarms": false_alarms,
-        "isolation": {"confusion": confusion, "cases": len(faulty),
-                      "correct_rate": _rate(right, len(faulty))},
+        "isolation": {
+            "confusion": confusion,
+            "cases": len(faulty),
+            "correct_rate": _rate(right, len(faulty)),
+        },
         "timing": {
             "median_simulate_s": float(frame["simulate_s"].median()) if len(frame) else None,
             "median_identify_s": float(frame["identify_s"].median()) if len(frame) else None,
@@ -155,8 +178,13 @@ def _intervals(frame: pd.DataFrame, params: Parameters) -> dict | None:
         keep = np.isfinite(low) & np.isfinite(high)
         if q.circular:
             fault = next(f for f in CATALOGUE if name in {x.name for x in f.quantities})
-            severity = np.max([np.abs(frame[f"true_{m.name}"].to_numpy(float) - m.healthy)
-                               for m in fault.magnitudes], axis=0)
+            severity = np.max(
+                [
+                    np.abs(frame[f"true_{m.name}"].to_numpy(float) - m.healthy)
+                    for m in fault.magnitudes
+                ],
+                axis=0,
+            )
             keep &= severity >= getattr(params.spec.health, fault.name).incipient
             half = 0.5 * (high - low)
             centre = 0.5 * (high + low)
@@ -176,8 +204,10 @@ def _intervals(frame: pd.DataFrame, params: Parameters) -> dict | None:
             "median_width": float(np.median(width[keep])) if n else None,
             "width_bar": bar,
         }
-    inconclusive = {f: _rate(int((frame[f"health_{f}"] == "inconclusive").sum()), len(frame))
-                    for f in FAULT_NAMES}
+    inconclusive = {
+        f: _rate(int((frame[f"health_{f}"] == "inconclusive").sum()), len(frame))
+        for f in FAULT_NAMES
+    }
     return {"quantities": out, "inconclusive": inconclusive}
 
 
@@ -185,8 +215,12 @@ def _spread(values: np.ndarray) -> dict:
     magnitude = np.abs(values[np.isfinite(values)])
     if not magnitude.size:
         return {"n": 0, "median": None, "p95": None, "max": None}
-    return {"n": int(magnitude.size), "median": float(np.median(magnitude)),
-            "p95": float(np.percentile(magnitude, 95)), "max": float(np.max(magnitude))}
+    return {
+        "n": int(magnitude.size),
+        "median": float(np.median(magnitude)),
+        "p95": float(np.percentile(magnitude, 95)),
+        "max": float(np.max(magnitude)),
+    }
 
 
 def _commissioning(frame: pd.DataFrame) -> dict | None:
@@ -214,9 +248,10 @@ def _nuisance(frame: pd.DataFrame) -> dict | None:
         out[name] = _spread(error[keep])
         if f"se_{name}" in frame:
             half = Z90 * frame[f"se_{name}"].to_numpy(float)[keep]
-            out[name].update(coverage=_rate(int(np.sum(np.abs(error[keep]) <= half)),
-                                            int(keep.sum())),
-                             median_width=float(np.median(2.0 * half)))
+            out[name].update(
+                coverage=_rate(int(np.sum(np.abs(error[keep]) <= half)), int(keep.sum())),
+                median_width=float(np.median(2.0 * half)),
+            )
     return out or None
 
 
@@ -271,25 +306,30 @@ def markdown(summary: dict) -> str:
     provenance (campaign, hash, scenario, parameters, seed) for a person, figures embedded."""
     rows = []
     for quantity, s in summary["errors"].items():
-        rows.append(f"| {quantity} | {s['measure']} [{s['unit']}] | {s['n']} | {_cell(s['bias'])} | "
-                    f"{_cell(s['median'])} | {_cell(s['p95'])} | {_cell(s['max'])} | "
-                    f"{_cell(s['tolerance'])} | {_cell(s['within_tolerance'], '{:.0%}')} |")
+        rows.append(
+            f"| {quantity} | {s['measure']} [{s['unit']}] | {s['n']} | {_cell(s['bias'])} | "
+            f"{_cell(s['median'])} | {_cell(s['p95'])} | {_cell(s['max'])} | "
+            f"{_cell(s['tolerance'])} | {_cell(s['within_tolerance'], '{:.0%}')} |"
+        )
     detection = "\n".join(
         f"| {f} | {d['cases']} | {d['detected']} | {_cell(d['rate'], '{:.0%}')} | "
         f"{_cell(summary['false_alarms']['per_fault_on_healthy'][f], '{:.0%}')} | "
         f"{_cell(summary['false_alarms']['per_fault_where_absent'][f], '{:.0%}')} |"
-        for f, d in summary["detection"].items())
+        for f, d in summary["detection"].items()
+    )
     confusion = summary["isolation"]["confusion"]
-    matrix = "\n".join(f"| {t} | " + " | ".join(str(confusion[t][e]) for e in PHASE_NAMES) + " |"
-                       for t in PHASE_NAMES)
+    matrix = "\n".join(
+        f"| {t} | " + " | ".join(str(confusion[t][e]) for e in PHASE_NAMES) + " |"
+        for t in PHASE_NAMES
+    )
     fa = summary["false_alarms"]
     failures = summary.get("failed", 0)
-    return f"""# Campaign {summary['campaign']}: {summary['cases']} cases
+    return f"""# Campaign {summary["campaign"]}: {summary["cases"]} cases
 
-Campaign `{summary['campaign_file']}` (hash `{summary['campaign_hash'][:12]}`), base scenario
-`{summary['scenario']}`, parameter set `{summary['parameters']}`, seed {summary['seed']},
-emaprog {summary['emaprog_version']}. Finished cases: {summary['cases']} of {summary['planned']};
-failed: {failures}{' (see failures/)' if failures else ''}.
+Campaign `{summary["campaign_file"]}` (hash `{summary["campaign_hash"][:12]}`), base scenario
+`{summary["scenario"]}`, parameter set `{summary["parameters"]}`, seed {summary["seed"]},
+emaprog {summary["emaprog_version"]}. Finished cases: {summary["cases"]} of {summary["planned"]};
+failed: {failures}{" (see failures/)" if failures else ""}.
 
 ## Identification error
 
@@ -308,8 +348,8 @@ cases whose true zeta reaches the incipient threshold.
 ## Detection and false alarms
 
 Detected: verdict incipient or degraded where the true fault reaches its incipient
-threshold. False alarms: on the {fa['healthy_cases']} all-healthy cases
-({fa['flagged']} flagged, rate {_cell(fa['rate'], '{:.0%}')}), and over every case where the
+threshold. False alarms: on the {fa["healthy_cases"]} all-healthy cases
+({fa["flagged"]} flagged, rate {_cell(fa["rate"], "{:.0%}")}), and over every case where the
 fault is truly below its incipient threshold.
 
 | fault | faulty cases | detected | detection rate | false alarms (healthy cases) | false alarms (fault absent) |
@@ -319,14 +359,14 @@ fault is truly below its incipient threshold.
 ## Short-circuit isolation
 
 Rows: true faulty phase; columns: phase named by the verdict. Correct on
-{_cell(summary['isolation']['correct_rate'], '{:.0%}')} of {summary['isolation']['cases']} faulty cases.
+{_cell(summary["isolation"]["correct_rate"], "{:.0%}")} of {summary["isolation"]["cases"]} faulty cases.
 
-| true \\ named | {' | '.join(PHASE_NAMES)} |
+| true \\ named | {" | ".join(PHASE_NAMES)} |
 |---|---|---|---|---|
 {matrix}
 
-{_intervals_markdown(summary)}{_commissioning_markdown(summary)}Median time per case: simulate {_cell(summary['timing']['median_simulate_s'], '{:.2f}')} s,
-identify {_cell(summary['timing']['median_identify_s'], '{:.2f}')} s.
+{_intervals_markdown(summary)}{_commissioning_markdown(summary)}Median time per case: simulate {_cell(summary["timing"]["median_simulate_s"], "{:.2f}")} s,
+identify {_cell(summary["timing"]["median_identify_s"], "{:.2f}")} s.
 """
 
 
@@ -334,33 +374,50 @@ def _intervals_markdown(summary: dict) -> str:
     block = summary.get("intervals")
     if not block:
         return ""
-    rows = "\n".join(f"| {name} | {s['n']} | {_cell(s['coverage'], '{:.0%}')} | "
-                     f"{_cell(s['median_width'])} | {_cell(s['width_bar'])} |"
-                     for name, s in block["quantities"].items())
+    rows = "\n".join(
+        f"| {name} | {s['n']} | {_cell(s['coverage'], '{:.0%}')} | "
+        f"{_cell(s['median_width'])} | {_cell(s['width_bar'])} |"
+        for name, s in block["quantities"].items()
+    )
     inconclusive = ", ".join(f"{f} {_cell(r, '{:.0%}')}" for f, r in block["inconclusive"].items())
-    return ("## Confidence\n\nShare of cases whose 90 % interval holds the truth (target "
-            "85-95 %), and the interval's median width (friction relative to its true value) "
-            "beside twice the tolerance.\n\n| quantity | n | coverage | median width | "
-            "2 x tolerance |\n|---|---|---|---|---|\n" + rows
-            + f"\n\nInconclusive verdicts: {inconclusive}.\n\n")
+    return (
+        "## Confidence\n\nShare of cases whose 90 % interval holds the truth (target "
+        "85-95 %), and the interval's median width (friction relative to its true value) "
+        "beside twice the tolerance.\n\n| quantity | n | coverage | median width | "
+        "2 x tolerance |\n|---|---|---|---|---|\n"
+        + rows
+        + f"\n\nInconclusive verdicts: {inconclusive}.\n\n"
+    )
 
 
 def _commissioning_markdown(summary: dict) -> str:
     blocks = []
     if summary.get("commissioning"):
-        rows = "\n".join(f"| {name} | {s['n']} | {_cell(s['median'])} | {_cell(s['p95'])} | "
-                         f"{_cell(s['max'])} |" for name, s in summary["commissioning"].items())
-        blocks.append("## Commissioning\n\nEach case's unit commissioned from its own healthy "
-                      "recording: |commissioned / true - 1| per parameter (hinge moment: |error| "
-                      "[N m]).\n\n| parameter | n | median | p95 | max |\n|---|---|---|---|---|\n"
-                      + rows + "\n\n")
+        rows = "\n".join(
+            f"| {name} | {s['n']} | {_cell(s['median'])} | {_cell(s['p95'])} | {_cell(s['max'])} |"
+            for name, s in summary["commissioning"].items()
+        )
+        blocks.append(
+            "## Commissioning\n\nEach case's unit commissioned from its own healthy "
+            "recording: |commissioned / true - 1| per parameter (hinge moment: |error| "
+            "[N m]).\n\n| parameter | n | median | p95 | max |\n|---|---|---|---|---|\n"
+            + rows
+            + "\n\n"
+        )
     for name, s in (summary.get("nuisance") or {}).items():
-        label, unit = {"hinge_moment": ("Hinge moment", " N m"),
-                       "resistance_factor": ("Resistance factor", "")}[name]
-        held = ("" if s.get("coverage") is None else
-                f"; its 90 % interval held the truth in {_cell(s['coverage'], '{:.0%}')} "
-                f"(median width {_cell(s['median_width'])}{unit})")
-        blocks.append(f"{label} estimated as a nuisance: |error| median {_cell(s['median'])}, "
-                      f"p95 {_cell(s['p95'])}, max {_cell(s['max'])}{unit} over {s['n']} cases"
-                      f"{held}.\n\n")
+        label, unit = {
+            "hinge_moment": ("Hinge moment", " N m"),
+            "resistance_factor": ("Resistance factor", ""),
+        }[name]
+        held = (
+            ""
+            if s.get("coverage") is None
+            else f"; its 90 % interval held the truth in {_cell(s['coverage'], '{:.0%}')} "
+            f"(median width {_cell(s['median_width'])}{unit})"
+        )
+        blocks.append(
+            f"{label} estimated as a nuisance: |error| median {_cell(s['median'])}, "
+            f"p95 {_cell(s['p95'])}, max {_cell(s['max'])}{unit} over {s['n']} cases"
+            f"{held}.\n\n"
+        )
     return "".join(blocks)

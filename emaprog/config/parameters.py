@@ -105,18 +105,23 @@ class Monitor(_Section):
     eccentricity_gain: Pos = Field(description="[-] c in Z = c * zeta")
     torque_gain_scale: Pos = Field(description="[-] nominal torque/back-EMF gain correction")
     commutation_loss: Annotated[float, Field(strict=True, ge=0, le=1e-3)] = Field(
-        0.0, description="[s/rad] torque-per-ampere drop with motor speed (commutation dips)")
+        0.0, description="[s/rad] torque-per-ampere drop with motor speed (commutation dips)"
+    )
     commutation_model: Literal["transient", "none"] = Field(
-        "none", description="'transient': the outgoing phase freewheels after each sector "
-                            "change (its current in the equivalent current and the torque); "
-                            "'none': the pair current switches instantly")
+        "none",
+        description="'transient': the outgoing phase freewheels after each sector "
+        "change (its current in the equivalent current and the torque); "
+        "'none': the pair current switches instantly",
+    )
 
 
 class Threshold(_Section):
     incipient: NonNeg = Field(description="severity from which the fault is reported")
     degraded: NonNeg = Field(description="severity from which maintenance should be planned")
-    failure: NonNeg = Field(description="severity at which the actuator is to be replaced: "
-                                        "the end of its remaining useful life (emaprog trend)")
+    failure: NonNeg = Field(
+        description="severity at which the actuator is to be replaced: "
+        "the end of its remaining useful life (emaprog trend)"
+    )
 
     @model_validator(mode="after")
     def _ordered(self):
@@ -128,8 +133,11 @@ class Threshold(_Section):
 #: Health verdict thresholds on the *severity* of each catalogue fault (its deviation from
 #: healthy: :attr:`emaprog.faults.Fault.severity`).
 Health = create_model(
-    "Health", __base__=_Section, __module__=__name__,
-    **catalogue_fields({f.name: (Threshold, Field(description=f.severity)) for f in CATALOGUE}))
+    "Health",
+    __base__=_Section,
+    __module__=__name__,
+    **catalogue_fields({f.name: (Threshold, Field(description=f.severity)) for f in CATALOGUE}),
+)
 
 
 class FittedValue(_Section):
@@ -145,15 +153,20 @@ class CommissioningRecording(_Section):
 
     file: str = Field(description="the recording (absolute path when it was a file)")
     sha256: str
-    columns: str | None = Field(None, description="the column map it was read through "
-                                                     "(absolute path), null for a trace file")
+    columns: str | None = Field(
+        None,
+        description="the column map it was read through (absolute path), null for a trace file",
+    )
     hinge_moment: Real = Field(description="[N m] constant hinge moment during the recording")
     hinge_moment_standard_error: NonNeg = Field(description="[N m]")
-    residual: dict[str, NonNeg] = Field(description="RMS of the fit residual per signal over the "
-                                                    "RMS of the signal [-] (1 ms mean)")
+    residual: dict[str, NonNeg] = Field(
+        description="RMS of the fit residual per signal over the RMS of the signal [-] (1 ms mean)"
+    )
     phase_identity: dict | None = Field(
-        None, description="which logger channel carried which model winding (rig recordings "
-                          "with three phase currents; docs/reference.md, Rig recordings)")
+        None,
+        description="which logger channel carried which model winding (rig recordings "
+        "with three phase currents; docs/reference.md, Rig recordings)",
+    )
 
 
 class Commissioning(_Section):
@@ -164,10 +177,12 @@ class Commissioning(_Section):
     base: str = Field(description="the parameter set the unit was fitted from")
     recordings: list[CommissioningRecording]
     fitted: dict[str, FittedValue] = Field(description="parameters the recordings determined")
-    not_determined: list[str] = Field(description="parameters held at the base value: the "
-                                                  "recordings do not determine them")
-    degenerate: list[str] = Field(description="combinations of parameters the recordings "
-                                              "barely constrain, in words")
+    not_determined: list[str] = Field(
+        description="parameters held at the base value: the recordings do not determine them"
+    )
+    degenerate: list[str] = Field(
+        description="combinations of parameters the recordings barely constrain, in words"
+    )
     residual: NonNeg = Field(description="RMS of the whole normalised fit residual [-]")
 
 
@@ -183,7 +198,8 @@ class ParameterFile(_Section):
     monitor: Monitor
     health: Health
     commissioning: Commissioning | None = Field(
-        None, description="a commissioned unit's provenance (emaprog commission)")
+        None, description="a commissioned unit's provenance (emaprog commission)"
+    )
 
 
 # ---------------------------------------------------------------- kernel structs
@@ -215,17 +231,32 @@ def derive(spec: ParameterFile, source_file: str) -> Parameters:
         source_file=source_file,
         spec=spec,
         electrical=ElectricalParams(
-            e.dc_bus_voltage, float(e.pole_pairs), e.phase_resistance, e.phase_inductance,
-            e.back_emf_constant, e.current_limit, e.hysteresis_band,
+            e.dc_bus_voltage,
+            float(e.pole_pairs),
+            e.phase_resistance,
+            e.phase_inductance,
+            e.back_emf_constant,
+            e.current_limit,
+            e.hysteresis_band,
         ),
         mechanical=MechanicalParams(**m.model_dump()),
         controller=ControllerParams(
-            1.0 / c.rate, c.position_gain, c.position_integral, c.speed_gain,
-            c.speed_integral, c.speed_limit, e.current_limit,
+            1.0 / c.rate,
+            c.position_gain,
+            c.position_integral,
+            c.speed_gain,
+            c.speed_integral,
+            c.speed_limit,
+            e.current_limit,
         ),
         sensors=SensorParams(
-            s.position_offset, 2 * s.position_range / levels, 2 * s.speed_range / levels,
-            2 * s.current_range / levels, s.position_range, s.speed_range, s.current_range,
+            s.position_offset,
+            2 * s.position_range / levels,
+            2 * s.speed_range / levels,
+            2 * s.current_range / levels,
+            s.position_range,
+            s.speed_range,
+            s.current_range,
         ),
     )
 
@@ -239,8 +270,9 @@ def builtin_names() -> list[str]:
     return sorted(p.stem for p in builtin_dir().glob("*.yaml"))
 
 
-def resolve(name_or_path: str, relative_to: Path | None = None,
-            source: str | Path = "parameters") -> Path:
+def resolve(
+    name_or_path: str, relative_to: Path | None = None, source: str | Path = "parameters"
+) -> Path:
     """Find a parameter set: a path ending in .yaml, else a shipped name.
 
     ``source`` is the file that named the set, for the error message.
@@ -261,8 +293,11 @@ def resolve(name_or_path: str, relative_to: Path | None = None,
     )
 
 
-def load(name_or_path: str = "default", relative_to: Path | None = None,
-         source: str | Path = "parameters") -> Parameters:
+def load(
+    name_or_path: str = "default",
+    relative_to: Path | None = None,
+    source: str | Path = "parameters",
+) -> Parameters:
     """Load, validate and derive a parameter set by name or path."""
     path = resolve(name_or_path, relative_to, source)
     data = load_mapping(path)

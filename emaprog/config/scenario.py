@@ -31,18 +31,33 @@ TWO_PI = 2.0 * math.pi
 Name = Annotated[str, Field(pattern=r"^[A-Za-z0-9_-]{1,80}$", description="letters digits - _")]
 
 
-def _num(lo: float | None = None, hi: float | None = None, *, lo_open: bool = False,
-         hi_open: bool = False, description: str = "") -> Any:
+def _num(
+    lo: float | None = None,
+    hi: float | None = None,
+    *,
+    lo_open: bool = False,
+    hi_open: bool = False,
+    description: str = "",
+) -> Any:
     """A strict float within bounds, for the models built from the catalogue at import
     (:func:`create_model`); the hand-written models spell their ``Annotated`` types out."""
-    return Annotated[float, Field(strict=True, description=description,
-                                  gt=lo if lo is not None and lo_open else None,
-                                  ge=lo if lo is not None and not lo_open else None,
-                                  lt=hi if hi is not None and hi_open else None,
-                                  le=hi if hi is not None and not hi_open else None)]
+    return Annotated[
+        float,
+        Field(
+            strict=True,
+            description=description,
+            gt=lo if lo is not None and lo_open else None,
+            ge=lo if lo is not None and not lo_open else None,
+            lt=hi if hi is not None and hi_open else None,
+            le=hi if hi is not None and not hi_open else None,
+        ),
+    ]
 
 
-Angle = Annotated[float, Field(strict=True, ge=-0.4, le=0.4, description="[rad] surface angle, within the end stops")]
+Angle = Annotated[
+    float,
+    Field(strict=True, ge=-0.4, le=0.4, description="[rad] surface angle, within the end stops"),
+]
 Frequency = Annotated[float, Field(strict=True, gt=0.0, le=200.0, description="[Hz]")]
 
 
@@ -54,7 +69,9 @@ class Strict(BaseModel):
 class StepCommand(Strict):
     kind: Literal["step"]
     amplitude: Angle
-    time: Annotated[float, Field(strict=True, ge=0.0, le=60.0, description="[s] step instant")] = 0.0
+    time: Annotated[float, Field(strict=True, ge=0.0, le=60.0, description="[s] step instant")] = (
+        0.0
+    )
     offset: Angle = 0.0
 
 
@@ -99,13 +116,25 @@ class NoLoad(Strict):
 
 class ConstantLoad(Strict):
     kind: Literal["constant"]
-    torque: Annotated[float, Field(strict=True, ge=-5000.0, le=5000.0, description="[N m] hinge moment opposing +deflection")]
+    torque: Annotated[
+        float,
+        Field(
+            strict=True,
+            ge=-5000.0,
+            le=5000.0,
+            description="[N m] hinge moment opposing +deflection",
+        ),
+    ]
 
 
 class SpringLoad(Strict):
     kind: Literal["spring"]
-    stiffness: Annotated[float, Field(strict=True, ge=0.0, le=1.0e5, description="[N m/rad] aerodynamic spring")]
-    torque: Annotated[float, Field(strict=True, ge=-5000.0, le=5000.0, description="[N m] constant part")] = 0.0
+    stiffness: Annotated[
+        float, Field(strict=True, ge=0.0, le=1.0e5, description="[N m/rad] aerodynamic spring")
+    ]
+    torque: Annotated[
+        float, Field(strict=True, ge=-5000.0, le=5000.0, description="[N m] constant part")
+    ] = 0.0
 
 
 Load = Annotated[NoLoad | ConstantLoad | SpringLoad, Field(discriminator="kind")]
@@ -125,7 +154,9 @@ def _fault_value_type(fault: Fault) -> tuple[Any, Any]:
         return _quantity_field(q), q.healthy
     fields: dict[str, Any] = {str(q.key): (_quantity_field(q), q.healthy) for q in fault.quantities}
     model = create_model(_camel(fault.name), __base__=Strict, __module__=__name__, **fields)
-    globals()[model.__name__] = model  # a module attribute, so that instances pickle (sweep workers)
+    globals()[model.__name__] = (
+        model  # a module attribute, so that instances pickle (sweep workers)
+    )
     return model, model()
 
 
@@ -156,15 +187,27 @@ def _check_bounds(value: tuple[float, float], info: ValidationInfo):
 
 #: Search range of each fault's magnitudes (its angles span the circle).
 Bounds = create_model(
-    "Bounds", __base__=Strict, __module__=__name__,
+    "Bounds",
+    __base__=Strict,
+    __module__=__name__,
     __validators__={"_check": field_validator(*FAULT_NAMES)(_check_bounds)},
-    **catalogue_fields({f.name: (tuple[float, float], f.default_bounds) for f in CATALOGUE}))
+    **catalogue_fields({f.name: (tuple[float, float], f.default_bounds) for f in CATALOGUE}),
+)
 
 
 class Signals(Strict):
-    current: Annotated[float, Field(strict=True, ge=0.0, le=1e3, description="[-] weight of the equivalent-current error")] = 1.0
-    position: Annotated[float, Field(strict=True, ge=0.0, le=1e3, description="[-] weight of the position error")] = 0.0
-    speed: Annotated[float, Field(strict=True, ge=0.0, le=1e3, description="[-] weight of the speed error")] = 0.0
+    current: Annotated[
+        float,
+        Field(
+            strict=True, ge=0.0, le=1e3, description="[-] weight of the equivalent-current error"
+        ),
+    ] = 1.0
+    position: Annotated[
+        float, Field(strict=True, ge=0.0, le=1e3, description="[-] weight of the position error")
+    ] = 0.0
+    speed: Annotated[
+        float, Field(strict=True, ge=0.0, le=1e3, description="[-] weight of the speed error")
+    ] = 0.0
 
     @model_validator(mode="after")
     def _some_weight(self):
@@ -176,26 +219,36 @@ class Signals(Strict):
 class GASettings(Strict):
     # omitted: 32 x 20 behind the least-squares polish (as accurate as 64 x 40 on the quick,
     # robustness and regression campaigns at a quarter of the Monitor runs), 64 x 40 for a
-    # recording below 2.5 kHz (emaprog.identification.run.ga_budget; README)
+    # recording below 2.5 kHz (emaprog.identification.run.ga_budget; docs/explanation/validation-and-speed.md)
     population: Annotated[int, Field(strict=True, ge=4, le=4096)] | None = Field(
-        None, description="individuals per generation; omitted: 32, or 64 for a recording "
-                          "below 2.5 kHz")
+        None,
+        description="individuals per generation; omitted: 32, or 64 for a recording below 2.5 kHz",
+    )
     generations: Annotated[int, Field(strict=True, ge=1, le=1000)] | None = Field(
-        None, description="omitted: 20, or 40 for a recording below 2.5 kHz")
-    crossover: Annotated[float, Field(strict=True, ge=0.0, le=1.0, description="[-] crossover probability")] = 0.7
-    mutation: Annotated[float, Field(strict=True, ge=0.0, le=1.0, description="[-] mutation probability")] = 0.2
+        None, description="omitted: 20, or 40 for a recording below 2.5 kHz"
+    )
+    crossover: Annotated[
+        float, Field(strict=True, ge=0.0, le=1.0, description="[-] crossover probability")
+    ] = 0.7
+    mutation: Annotated[
+        float, Field(strict=True, ge=0.0, le=1.0, description="[-] mutation probability")
+    ] = 0.2
     seed: Annotated[int, Field(strict=True, ge=0, le=2**32 - 1)] = 1
     strategy: Literal["numpy", "deap"] = Field(
-        "numpy", description="numpy: generational GA, elitism, BLX-alpha crossover and decaying "
-                             "Gaussian mutation written in numpy; deap: DEAP's (mu + lambda) "
-                             "loop with selTournament, cxSimulatedBinaryBounded and "
-                             "mutPolynomialBounded")
+        "numpy",
+        description="numpy: generational GA, elitism, BLX-alpha crossover and decaying "
+        "Gaussian mutation written in numpy; deap: DEAP's (mu + lambda) "
+        "loop with selTournament, cxSimulatedBinaryBounded and "
+        "mutPolynomialBounded",
+    )
 
     @model_validator(mode="after")
     def _deap_probabilities(self):
         if self.strategy == "deap" and self.crossover + self.mutation > 1.0:
-            raise ValueError("with strategy deap, crossover + mutation must be at most 1 (each "
-                             "offspring is crossed, mutated or copied)")
+            raise ValueError(
+                "with strategy deap, crossover + mutation must be at most 1 (each "
+                "offspring is crossed, mutated or copied)"
+            )
         return self
 
 
@@ -204,16 +257,20 @@ NuisanceName = Literal["hinge_moment", "resistance_factor"]
 
 class NuisanceBounds(Strict):
     hinge_moment: tuple[float, float] = Field(
-        (-500.0, 500.0), description="[N m] constant hinge moment, within [-5000, 5000]")
+        (-500.0, 500.0), description="[N m] constant hinge moment, within [-5000, 5000]"
+    )
     resistance_factor: tuple[float, float] = Field(
-        (0.8, 1.3), description="[-] winding resistance over the set's (temperature), within [0.5, 2]")
+        (0.8, 1.3),
+        description="[-] winding resistance over the set's (temperature), within [0.5, 2]",
+    )
 
     @field_validator("hinge_moment", "resistance_factor")
     @classmethod
     def _check(cls, value: tuple[float, float], info: ValidationInfo):
         lo, hi = value
-        low, high = {"hinge_moment": (-5000.0, 5000.0),
-                     "resistance_factor": (0.5, 2.0)}[str(info.field_name)]
+        low, high = {"hinge_moment": (-5000.0, 5000.0), "resistance_factor": (0.5, 2.0)}[
+            str(info.field_name)
+        ]
         if not (math.isfinite(lo) and math.isfinite(hi)) or not lo < hi:
             raise ValueError(f"need finite bounds, lower below upper (got {lo}, {hi})")
         if lo < low or hi > high:
@@ -228,22 +285,41 @@ class IdentifySettings(Strict):
     ga: GASettings = GASettings()
     refine: bool = True
     polish: Literal["powell", "least_squares"] = Field(
-        "least_squares", description="local search after the GA (with refine): bounded Powell, or "
-                              "trust-region least squares on the residual with a batched "
-                              "Jacobian")
-    max_speed: Annotated[float, Field(strict=True, gt=0.0, le=10000.0, description="[rad/s] motor speed above which samples are left " "out of the error; omitted: 40 % of the DC bus as " "pair back-EMF")] | None = None
+        "least_squares",
+        description="local search after the GA (with refine): bounded Powell, or "
+        "trust-region least squares on the residual with a batched "
+        "Jacobian",
+    )
+    max_speed: (
+        Annotated[
+            float,
+            Field(
+                strict=True,
+                gt=0.0,
+                le=10000.0,
+                description="[rad/s] motor speed above which samples are left "
+                "out of the error; omitted: 40 % of the DC bus as "
+                "pair back-EMF",
+            ),
+        ]
+        | None
+    ) = None
     nuisances: list[NuisanceName] | None = Field(
-        None, description="operating conditions estimated beside the faults and reported under "
-                          "`nuisance`, never given a verdict; omitted: both for a real unit (a "
-                          "rig recording, or a commissioned unit's set), none for a twin "
-                          "experiment (emaprog.identification.defaults)")
+        None,
+        description="operating conditions estimated beside the faults and reported under "
+        "`nuisance`, never given a verdict; omitted: both for a real unit (a "
+        "rig recording, or a commissioned unit's set), none for a twin "
+        "experiment (emaprog.identification.defaults)",
+    )
     nuisance_bounds: NuisanceBounds = NuisanceBounds()
     nominal_correction: Literal["reference", "recording", "none"] | None = Field(
-        None, description="what is subtracted from the measured signals before fitting: "
-                                 "the healthy Reference-Monitor difference with the set in use, "
-                                 "the unit's commissioning recording's residual, or nothing "
-                                 "(true/false: reference/none); omitted: chosen by the recording "
-                                 "(emaprog.identification.defaults)")
+        None,
+        description="what is subtracted from the measured signals before fitting: "
+        "the healthy Reference-Monitor difference with the set in use, "
+        "the unit's commissioning recording's residual, or nothing "
+        "(true/false: reference/none); omitted: chosen by the recording "
+        "(emaprog.identification.defaults)",
+    )
 
     @field_validator("nominal_correction", mode="before")
     @classmethod
@@ -362,10 +438,17 @@ _SCALAR_FAULTS = [f.name for f in CATALOGUE if f.layout == "scalar"]
 
 #: Distributions of the true faults of a campaign's cases, one optional field per fault.
 FaultDistributions = create_model(
-    "FaultDistributions", __base__=Strict, __module__=__name__,
+    "FaultDistributions",
+    __base__=Strict,
+    __module__=__name__,
     __validators__={"_scalar": field_validator(*_SCALAR_FAULTS)(_scalar_within_range)},
-    **catalogue_fields({"healthy_fraction": (_num(0.0, 1.0, description="[-] share of all-healthy cases"), 0.0),
-               **{f.name: (DISTRIBUTION[f.layout] | None, None) for f in CATALOGUE}}))
+    **catalogue_fields(
+        {
+            "healthy_fraction": (_num(0.0, 1.0, description="[-] share of all-healthy cases"), 0.0),
+            **{f.name: (DISTRIBUTION[f.layout] | None, None) for f in CATALOGUE},
+        }
+    ),
+)
 
 
 #: Parameters a campaign may spread from unit to unit (relative changes of the set's values).
@@ -380,9 +463,12 @@ def _relative_range(dist, info: ValidationInfo):
 
 #: Per parameter, the distribution of each case's unit's relative change (+0.1 = 10 % more).
 ActuatorSpread = create_model(
-    "ActuatorSpread", __base__=Strict, __module__=__name__,
+    "ActuatorSpread",
+    __base__=Strict,
+    __module__=__name__,
     __validators__={"_range": field_validator(*SPREAD_PARAMETERS)(_relative_range)},
-    **catalogue_fields({name: (Uniform | None, None) for name in SPREAD_PARAMETERS}))
+    **catalogue_fields({name: (Uniform | None, None) for name in SPREAD_PARAMETERS}),
+)
 
 
 class Campaign(Strict):
@@ -394,12 +480,16 @@ class Campaign(Strict):
     faults: FaultDistributions
     identify: IdentifySettings = IdentifySettings()
     actuator_spread: ActuatorSpread = Field(
-        ActuatorSpread(), description="each case's unit: relative changes of the set's values")
+        ActuatorSpread(), description="each case's unit: relative changes of the set's values"
+    )
     hinge_moment: Uniform | None = Field(
-        None, description="[N m] each case's constant hinge moment, unknown to the identification")
+        None, description="[N m] each case's constant hinge moment, unknown to the identification"
+    )
     commission: bool = Field(
-        False, description="each case first commissions its own unit from a healthy recording "
-                           "and identifies against it")
+        False,
+        description="each case first commissions its own unit from a healthy recording "
+        "and identifies against it",
+    )
 
     @field_validator("hinge_moment")
     @classmethod
@@ -449,10 +539,22 @@ class GrowthLaw(Strict):
     """
 
     law: Literal["linear", "exponential"]
-    initial: Annotated[float, Field(strict=True, ge=0.0, le=5.0, description="severity at usage 0 [-] or [rad]")]
-    rate: Annotated[float, Field(strict=True, ge=0.0, le=1.0, description="[severity/h] linear, [1/h] exponential")]
-    variability: Annotated[float, Field(strict=True, ge=0.0, le=2.0, description="[-] lognormal sigma of the rate, drawn once per "
-                                            "history from its seed")] = 0.0
+    initial: Annotated[
+        float, Field(strict=True, ge=0.0, le=5.0, description="severity at usage 0 [-] or [rad]")
+    ]
+    rate: Annotated[
+        float,
+        Field(strict=True, ge=0.0, le=1.0, description="[severity/h] linear, [1/h] exponential"),
+    ]
+    variability: Annotated[
+        float,
+        Field(
+            strict=True,
+            ge=0.0,
+            le=2.0,
+            description="[-] lognormal sigma of the rate, drawn once per history from its seed",
+        ),
+    ] = 0.0
 
 
 class PhaseGrowth(GrowthLaw):
@@ -464,7 +566,12 @@ class PhaseGrowth(GrowthLaw):
 class PolarGrowth(GrowthLaw):
     """A ``polar`` fault grows in magnitude at a fixed angle."""
 
-    angle: Annotated[float, Field(strict=True, ge=0.0, le=TWO_PI, description="[rad] angular position of the narrow gap")] = 0.0
+    angle: Annotated[
+        float,
+        Field(
+            strict=True, ge=0.0, le=TWO_PI, description="[rad] angular position of the narrow gap"
+        ),
+    ] = 0.0
 
 
 GROWTH = {"scalar": GrowthLaw, "per_phase": PhaseGrowth, "polar": PolarGrowth}
@@ -478,14 +585,21 @@ def _some_fault(self):
 
 #: Growth law of each degrading fault of a synthetic history.
 Growth = create_model(
-    "Growth", __base__=Strict, __module__=__name__,
+    "Growth",
+    __base__=Strict,
+    __module__=__name__,
     __validators__=catalogue_fields({"_some_fault": model_validator(mode="after")(_some_fault)}),
-    **catalogue_fields({f.name: (GROWTH[f.layout] | None, None) for f in CATALOGUE}))
+    **catalogue_fields({f.name: (GROWTH[f.layout] | None, None) for f in CATALOGUE}),
+)
 
 
 class Inspections(Strict):
-    start: Annotated[float, Field(strict=True, ge=0.0, le=1.0e6, description="[h] usage of the first inspection")] = 0.0
-    step: Annotated[float, Field(strict=True, gt=0.0, le=1.0e5, description="[h] usage between inspections")]
+    start: Annotated[
+        float, Field(strict=True, ge=0.0, le=1.0e6, description="[h] usage of the first inspection")
+    ] = 0.0
+    step: Annotated[
+        float, Field(strict=True, gt=0.0, le=1.0e5, description="[h] usage between inspections")
+    ]
     count: Annotated[int, Field(strict=True, ge=3, le=500)]
 
 

@@ -42,9 +42,7 @@ _UniqueKeyLoader.yaml_implicit_resolvers = {
 }
 _UniqueKeyLoader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT_12, list("-+0123456789."))
 
-_UniqueKeyLoader.add_constructor(
-    yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping
-)
+_UniqueKeyLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
 
 
 def load_mapping(path: str | Path) -> dict[str, Any]:
@@ -87,7 +85,9 @@ def parse_mapping(text: str, source: str | Path) -> dict[str, Any]:
     if data is None:
         raise InputError(source, "is empty, expected a YAML mapping")
     if not isinstance(data, dict):
-        raise InputError(source, f"top level is a {type(data).__name__}, expected a mapping of keys")
+        raise InputError(
+            source, f"top level is a {type(data).__name__}, expected a mapping of keys"
+        )
     bad = [k for k in data if not isinstance(k, str)]
     if bad:
         raise InputError(source, f"keys must be text, got {bad[0]!r}")

@@ -49,8 +49,9 @@ MONITOR_HEALTHY = MonitorFaults(*HEALTHY)
 def calibration_inputs(params: Parameters) -> Inputs:
     """The paper's 0.5 s chirp (0.05 rad, 0.5 -> 10 Hz), no load."""
     t = signals.time_grid(0.5, params.spec.controller.rate)
-    cmd = signals.command(ChirpCommand(kind="chirp", amplitude=0.05, start_frequency=0.5,
-                                       end_frequency=10.0), t, 0.5)
+    cmd = signals.command(
+        ChirpCommand(kind="chirp", amplitude=0.05, start_frequency=0.5, end_frequency=10.0), t, 0.5
+    )
     torque, stiffness = signals.load(NoLoad(kind="none"), t)
     return Inputs(t, cmd, torque, stiffness)
 
@@ -66,15 +67,30 @@ class Fit:
         sample_weight = np.ones_like(current)
         sample_weight[: round(STARTUP_SECONDS * rate)] = 0.0
         zeros = np.zeros_like(current)
-        self.target = ErrorTarget(current, zeros, zeros, np.array([1.0, 0.0, 0.0]), width,
-                                  sample_weight, np.arange(current.size, dtype=np.int64), zeros)
+        self.target = ErrorTarget(
+            current,
+            zeros,
+            zeros,
+            np.array([1.0, 0.0, 0.0]),
+            width,
+            sample_weight,
+            np.arange(current.size, dtype=np.int64),
+            zeros,
+        )
 
     def __call__(self, rows: np.ndarray, opts: MonitorOptions) -> np.ndarray:
         """Error of each (m, 7) Monitor fault row under ``opts``."""
         p = self.params
         out = np.empty(rows.shape[0])
-        evaluate_population(np.ascontiguousarray(rows), unit_row(p.plant)[None], self.inp.drive(),
-                            p.plant, opts, self.target, out)
+        evaluate_population(
+            np.ascontiguousarray(rows),
+            unit_row(p.plant)[None],
+            self.inp.drive(),
+            p.plant,
+            opts,
+            self.target,
+            out,
+        )
         return out
 
 
@@ -99,13 +115,15 @@ def fit_commutation_loss(params: Parameters, inp: Inputs) -> float:
     return 0.5 * (lo + hi)
 
 
-def fit_eccentricity(params: Parameters, inp: Inputs,
-                     opts: MonitorOptions) -> tuple[float, float, list[float]]:
+def fit_eccentricity(
+    params: Parameters, inp: Inputs, opts: MonitorOptions
+) -> tuple[float, float, list[float]]:
     """(c, r^2, optimal Z per zeta of :data:`ZETA_GRID`)."""
     optimal = []
     for zeta in ZETA_GRID:
-        ref, _ = reference.run(params, inp, HEALTHY._replace(eccentricity_zeta=float(zeta)),
-                               with_noise=False)
+        ref, _ = reference.run(
+            params, inp, HEALTHY._replace(eccentricity_zeta=float(zeta)), with_noise=False
+        )
         fit = Fit(params, inp, ref["current"])
 
         def error(z: float, fit: Fit = fit) -> float:
@@ -117,18 +135,23 @@ def fit_eccentricity(params: Parameters, inp: Inputs,
         rows[:, ZETA_COLUMN] = scan
         start = scan[np.argmin(fit(rows, opts))]
         step = scan[1] - scan[0]
-        best = minimize_scalar(error, bounds=(max(start - step, 0.0), start + step), method="bounded",
-                               options={"xatol": 1e-4})
+        best = minimize_scalar(
+            error,
+            bounds=(max(start - step, 0.0), start + step),
+            method="bounded",
+            options={"xatol": 1e-4},
+        )
         optimal.append(float(best.x))
     z = np.array(optimal)
     c = float(np.dot(ZETA_GRID, z) / np.dot(ZETA_GRID, ZETA_GRID))
     residual = z - c * ZETA_GRID
-    r_squared = float(1.0 - np.sum(residual ** 2) / np.sum((z - z.mean()) ** 2))
+    r_squared = float(1.0 - np.sum(residual**2) / np.sum((z - z.mean()) ** 2))
     return c, r_squared, optimal
 
 
-def signature_errors(params: Parameters, inp: Inputs, opts: MonitorOptions,
-                     gain: float) -> dict[str, float]:
+def signature_errors(
+    params: Parameters, inp: Inputs, opts: MonitorOptions, gain: float
+) -> dict[str, float]:
     width = max(1, round(FILTER_SECONDS * params.spec.controller.rate))
     skip = round(STARTUP_SECONDS * params.spec.controller.rate)
     ref0, _ = reference.run(params, inp, HEALTHY, with_noise=False)
@@ -182,9 +205,11 @@ def calibrated_set(source: str | Path, result: dict, date: str) -> str:
         if count != 1:
             raise ValueError(f"{source}: cannot find monitor.{key} to update")
         moved.append(f"{key} {getattr(before, key):g} -> {float(value):g}")
-    record = (f'  - "monitor: {", ".join(moved)}, written by `emaprog calibrate` on {date} '
-              f'(r^2 {result["r_squared"]:.4f}; signature errors '
-              f'{max(result["signature_error"].values()):.2f} at most)."')
+    record = (
+        f'  - "monitor: {", ".join(moved)}, written by `emaprog calibrate` on {date} '
+        f"(r^2 {result['r_squared']:.4f}; signature errors "
+        f'{max(result["signature_error"].values()):.2f} at most)."'
+    )
     if re.search(r"^changes:\s*\[\s*\]\s*$", text, flags=re.MULTILINE):
         text = re.sub(r"^changes:\s*\[\s*\]\s*$", "changes:\n" + record, text, flags=re.MULTILINE)
     elif re.search(r"^changes:\s*$", text, flags=re.MULTILINE):

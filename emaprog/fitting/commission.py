@@ -102,11 +102,18 @@ MAX_CURRENT_RESIDUAL = 0.10
 #: 1.645 standard errors in 90 % of the units where the parameter is fitted; docs/reference.md
 #: (Commissioning) gives the coverage before and after, and on the robustness campaign. The
 #: static friction is held in nearly every unit; it takes the dynamic friction's floor.
-MODEL_ERROR_FLOOR = {"motor_inertia": 0.040, "surface_inertia": 0.0462, "motor_viscous": 0.108,
-                     "dynamic_friction": 0.0238, "static_friction": 0.0238,
-                     "phase_resistance": 0.0516, "back_emf_constant": 0.0309,
-                     "phase_inductance": 0.010, "transmission_stiffness": 0.0447,
-                     "hinge_moment": 1.81}
+MODEL_ERROR_FLOOR = {
+    "motor_inertia": 0.040,
+    "surface_inertia": 0.0462,
+    "motor_viscous": 0.108,
+    "dynamic_friction": 0.0238,
+    "static_friction": 0.0238,
+    "phase_resistance": 0.0516,
+    "back_emf_constant": 0.0309,
+    "phase_inductance": 0.010,
+    "transmission_stiffness": 0.0447,
+    "hinge_moment": 1.81,
+}
 
 
 def reported_error(name: str, value: float, linearised: float) -> float:
@@ -150,26 +157,35 @@ def prepare(trace: Trace, source: str, params: Parameters) -> Recording:
     """Check a recording can commission (motion, length) and low-pass its signals."""
     duration = float(trace.time[-1] - trace.time[0])
     if duration < MIN_DURATION:
-        raise InputError(source, f"cannot commission from {duration:.3g} s: a recording of at "
-                         f"least {MIN_DURATION:g} s of the standard test command is needed to "
-                         "determine inertias, viscous and friction")
+        raise InputError(
+            source,
+            f"cannot commission from {duration:.3g} s: a recording of at "
+            f"least {MIN_DURATION:g} s of the standard test command is needed to "
+            "determine inertias, viscous and friction",
+        )
     speed_limit = params.spec.controller.speed_limit
     peak = float(np.max(np.abs(trace["speed"])))
     if peak < MIN_SPEED_SHARE * speed_limit:
-        raise InputError(source, f"cannot commission: the motor barely moves (peak speed "
-                         f"{peak:.3g} rad/s, below {MIN_SPEED_SHARE:.0%} of the "
-                         f"{speed_limit:g} rad/s limit), so inertias, viscous, friction and the "
-                         "torque constant are not determined; record the standard test command "
-                         "(e.g. a 0.05 rad chirp, 0.5-10 Hz)", "speed")
+        raise InputError(
+            source,
+            f"cannot commission: the motor barely moves (peak speed "
+            f"{peak:.3g} rad/s, below {MIN_SPEED_SHARE:.0%} of the "
+            f"{speed_limit:g} rad/s limit), so inertias, viscous, friction and the "
+            "torque constant are not determined; record the standard test command "
+            "(e.g. a 0.05 rad chirp, 0.5-10 Hz)",
+            "speed",
+        )
     rate = params.spec.controller.rate
     inputs = inputs_from_trace(trace, params)
     width_model = max(1, round(FILTER_SECONDS * rate))
     recording_rate = trace.sample_rate
     width = max(1, round(FILTER_SECONDS * recording_rate))
-    instants = recorded_instants(trace.time, inputs.time,
-                                 filter_lag(width_model, rate) - filter_lag(width, recording_rate))
-    current, position, speed = (low_pass(trace[name], width)
-                                for name in ("current", "position", "speed"))
+    instants = recorded_instants(
+        trace.time, inputs.time, filter_lag(width_model, rate) - filter_lag(width, recording_rate)
+    )
+    current, position, speed = (
+        low_pass(trace[name], width) for name in ("current", "position", "speed")
+    )
     measured = (current, position, speed)
     mask = np.ones(trace.time.size, bool)
     mask[: round(STARTUP_SECONDS * recording_rate)] = False
@@ -199,12 +215,21 @@ class _Problem:
         base = self.params.plant
         e, m = base.electrical, base.mechanical
         dynamic = m.dynamic_friction * factors["dynamic_friction"]
-        electrical = e._replace(**{u.name: getattr(e, u.name) * factors[u.name]
-                                   for u in UNKNOWNS if u.section == "electrical"})
-        mechanical = m._replace(**{u.name: getattr(m, u.name) * factors[u.name]
-                                   for u in UNKNOWNS if u.section == "mechanical"
-                                   and u.name != "static_friction"},
-                                static_friction=dynamic * self.base_ratio * factors["ratio"])
+        electrical = e._replace(
+            **{
+                u.name: getattr(e, u.name) * factors[u.name]
+                for u in UNKNOWNS
+                if u.section == "electrical"
+            }
+        )
+        mechanical = m._replace(
+            **{
+                u.name: getattr(m, u.name) * factors[u.name]
+                for u in UNKNOWNS
+                if u.section == "mechanical" and u.name != "static_friction"
+            },
+            static_friction=dynamic * self.base_ratio * factors["ratio"],
+        )
         # unquantised feedback: a smooth residual for the finite-difference Jacobian
         return fine_plant(Plant(electrical, mechanical, base.controller, base.sensors))
 
@@ -216,7 +241,7 @@ class _Problem:
         return out
 
     def hinges(self, x: np.ndarray) -> np.ndarray:
-        return HINGE_SCALE * np.asarray(x[len(self.free):])
+        return HINGE_SCALE * np.asarray(x[len(self.free) :])
 
     def simulate(self, recording: Recording, plant: Plant, hinge: float) -> list[np.ndarray]:
         n = recording.inputs.time.size
@@ -224,10 +249,13 @@ class _Problem:
         simulate_monitor(recording.inputs.drive(hinge), plant, self.faults, self.options, out)
         speed = out.speed
         if recording.speed_from_position:  # the same derivative as the recording's speed
-            speed = derived_speed(recording.inputs.time,
-                                  self.params.spec.mechanical.gear_ratio * out.position)
-        return [recording.instants.sample(low_pass(signal, self.width))
-                for signal in (out.current, out.position, speed)]
+            speed = derived_speed(
+                recording.inputs.time, self.params.spec.mechanical.gear_ratio * out.position
+            )
+        return [
+            recording.instants.sample(low_pass(signal, self.width))
+            for signal in (out.current, out.position, speed)
+        ]
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         self.evaluations += 1
@@ -236,7 +264,9 @@ class _Problem:
         for recording, hinge in zip(self.recordings, self.hinges(x)):
             model = self.simulate(recording, plant, float(hinge))
             for s in range(3):
-                parts.append(((model[s] - recording.measured[s]) / recording.scales[s])[recording.mask])
+                parts.append(
+                    ((model[s] - recording.measured[s]) / recording.scales[s])[recording.mask]
+                )
         return np.concatenate(parts)
 
 
@@ -264,13 +294,30 @@ def _solve(recordings, params, free, x0):
         # a robust (soft L1) pass first, then the plain least squares whose Jacobian gives the
         # covariance: from the base set the plain pass alone stalled, on the commissioning
         # test's unit, in a valley of the inertia split and stiffness at 7 x the truth's cost
-        start = least_squares(problem, np.clip(x0, lower, upper), bounds=(lower, upper),
-                              method="trf", diff_step=DIFF_STEP, x_scale=1.0, xtol=1e-8,
-                              ftol=1e-10, max_nfev=200, loss="soft_l1",
-                              f_scale=ROBUST_SCALE).x
-        result = least_squares(problem, start, bounds=(lower, upper), method="trf",
-                               diff_step=DIFF_STEP, x_scale=1.0, xtol=1e-8, ftol=1e-10,
-                               max_nfev=200)
+        start = least_squares(
+            problem,
+            np.clip(x0, lower, upper),
+            bounds=(lower, upper),
+            method="trf",
+            diff_step=DIFF_STEP,
+            x_scale=1.0,
+            xtol=1e-8,
+            ftol=1e-10,
+            max_nfev=200,
+            loss="soft_l1",
+            f_scale=ROBUST_SCALE,
+        ).x
+        result = least_squares(
+            problem,
+            start,
+            bounds=(lower, upper),
+            method="trf",
+            diff_step=DIFF_STEP,
+            x_scale=1.0,
+            xtol=1e-8,
+            ftol=1e-10,
+            max_nfev=200,
+        )
         # the covariance on one BLAS thread too: the same numbers whatever the thread count
         jac = result.jac
         dof = max(result.fun.size - jac.shape[1], 1)
@@ -311,16 +358,31 @@ def fit(recordings: list[Recording], params: Parameters) -> Fit:
             log_error = math.sqrt(max(variance, 0.0))
         standard_errors[target] = values[target] * log_error
     degenerate = _weak_directions(free, information, cov)
-    hinge_cov = np.diag(cov)[len(free):]
-    residuals, parts = [], np.split(result.fun, np.cumsum([3 * r.mask.sum() for r in recordings])[:-1])
+    hinge_cov = np.diag(cov)[len(free) :]
+    residuals, parts = (
+        [],
+        np.split(result.fun, np.cumsum([3 * r.mask.sum() for r in recordings])[:-1]),
+    )
     for _recording, part in zip(recordings, parts):
         per_signal = np.split(part, 3)
-        residuals.append({name: float(np.sqrt(np.mean(p ** 2)))
-                          for name, p in zip(("current", "position", "speed"), per_signal)})
-    return Fit(values, base, standard_errors, held, degenerate,
-               [float(h) for h in problem.hinges(result.x)],
-               [float(HINGE_SCALE * math.sqrt(max(v, 0.0))) for v in hinge_cov],
-               residuals, float(np.sqrt(np.mean(result.fun ** 2))), evaluations)
+        residuals.append(
+            {
+                name: float(np.sqrt(np.mean(p**2)))
+                for name, p in zip(("current", "position", "speed"), per_signal)
+            }
+        )
+    return Fit(
+        values,
+        base,
+        standard_errors,
+        held,
+        degenerate,
+        [float(h) for h in problem.hinges(result.x)],
+        [float(HINGE_SCALE * math.sqrt(max(v, 0.0))) for v in hinge_cov],
+        residuals,
+        float(np.sqrt(np.mean(result.fun**2))),
+        evaluations,
+    )
 
 
 def _weak_directions(free: list[str], information: np.ndarray, cov: np.ndarray) -> list[str]:
@@ -335,8 +397,9 @@ def _weak_directions(free: list[str], information: np.ndarray, cov: np.ndarray) 
     if spread <= MAX_LOG_ERROR / 2:
         return []
     order = np.argsort(-np.abs(v))[:4]
-    terms = ", ".join(f"{'+' if v[i] > 0 else '-'}{abs(v[i]):.2f} {free[i]}" for i in order
-                      if abs(v[i]) > 0.1)
+    terms = ", ".join(
+        f"{'+' if v[i] > 0 else '-'}{abs(v[i]):.2f} {free[i]}" for i in order if abs(v[i]) > 0.1
+    )
     return [f"log-factors along ({terms}) are determined to {spread:.1%} only (1 sigma)"]
 
 
@@ -344,14 +407,24 @@ def check_explained(fit_result: Fit, recordings: list[Recording]) -> None:
     """Refuse a commissioning whose Monitor does not explain a recording (exit 2)."""
     for recording, residual in zip(recordings, fit_result.residuals):
         if residual["current"] > MAX_CURRENT_RESIDUAL:
-            raise InputError(recording.source, "cannot commission: after the fit the healthy "
-                             f"Monitor still misses {residual['current']:.0%} of the current's RMS "
-                             f"(at most {MAX_CURRENT_RESIDUAL:.0%}); is the unit healthy, the "
-                             "recording of this actuator, and the column map right?", "current")
+            raise InputError(
+                recording.source,
+                "cannot commission: after the fit the healthy "
+                f"Monitor still misses {residual['current']:.0%} of the current's RMS "
+                f"(at most {MAX_CURRENT_RESIDUAL:.0%}); is the unit healthy, the "
+                "recording of this actuator, and the column map right?",
+                "current",
+            )
 
 
-def unit_set(base: Parameters, fit_result: Fit, recordings: list[Recording], name: str,
-             date: str, columns: str | None = None) -> str:
+def unit_set(
+    base: Parameters,
+    fit_result: Fit,
+    recordings: list[Recording],
+    name: str,
+    date: str,
+    columns: str | None = None,
+) -> str:
     """The commissioned unit as a complete parameter-set YAML text (checked to load)."""
     import hashlib
 
@@ -364,35 +437,60 @@ def unit_set(base: Parameters, fit_result: Fit, recordings: list[Recording], nam
     spec = base.spec.model_dump(mode="json")
     for u in UNKNOWNS:
         spec[u.section][u.name] = float(fit_result.values[u.name])
-    fitted = {u.name: {"value": fit_result.values[u.name], "base": fit_result.base[u.name],
-                       "standard_error": reported_error(u.name, fit_result.values[u.name],
-                                                        fit_result.standard_errors[u.name])}
-              for u in UNKNOWNS if u.name in fit_result.standard_errors}
-    sources = [{"file": str(Path(r.source).resolve()) if Path(r.source).is_file() else r.source,
-                "sha256": hashlib.sha256(Path(r.source).read_bytes()).hexdigest()
-                if Path(r.source).is_file() else "",
-                "columns": str(Path(columns).resolve()) if columns is not None else None,
-                "hinge_moment": h, "hinge_moment_standard_error": reported_error(
-                    "hinge_moment", h, e), "residual": res,
-                "phase_identity": (r.trace.metadata or {}).get("phase_identity")}
-               for r, h, e, res in zip(recordings, fit_result.hinge_moments,
-                                       fit_result.hinge_errors, fit_result.residuals)]
+    fitted = {
+        u.name: {
+            "value": fit_result.values[u.name],
+            "base": fit_result.base[u.name],
+            "standard_error": reported_error(
+                u.name, fit_result.values[u.name], fit_result.standard_errors[u.name]
+            ),
+        }
+        for u in UNKNOWNS
+        if u.name in fit_result.standard_errors
+    }
+    sources = [
+        {
+            "file": str(Path(r.source).resolve()) if Path(r.source).is_file() else r.source,
+            "sha256": hashlib.sha256(Path(r.source).read_bytes()).hexdigest()
+            if Path(r.source).is_file()
+            else "",
+            "columns": str(Path(columns).resolve()) if columns is not None else None,
+            "hinge_moment": h,
+            "hinge_moment_standard_error": reported_error("hinge_moment", h, e),
+            "residual": res,
+            "phase_identity": (r.trace.metadata or {}).get("phase_identity"),
+        }
+        for r, h, e, res in zip(
+            recordings, fit_result.hinge_moments, fit_result.hinge_errors, fit_result.residuals
+        )
+    ]
     spec.update(
         name=name,
         description=f"Unit commissioned on {date} from {len(recordings)} healthy recording(s); "
-                    f"base set '{base.spec.name}'.",
+        f"base set '{base.spec.name}'.",
         source=f"emaprog commission {__version__}: the base set's values, with those the "
-               "recordings determine fitted by bounded least squares of the healthy Monitor "
-               "Model (see commissioning).",
-        changes=[*base.spec.changes, f"commissioned on {date}: "
-                 + ", ".join(f"{k} x{fit_result.values[k] / fit_result.base[k]:.3f}"
-                             for k in fitted)
-                 + (f"; held at base: {', '.join(fit_result.not_determined)}"
-                    if fit_result.not_determined else "")],
-        commissioning={"date": date, "emaprog_version": __version__, "base": base.source_file,
-                       "recordings": sources, "fitted": fitted,
-                       "not_determined": fit_result.not_determined,
-                       "degenerate": fit_result.degenerate, "residual": fit_result.residual},
+        "recordings determine fitted by bounded least squares of the healthy Monitor "
+        "Model (see commissioning).",
+        changes=[
+            *base.spec.changes,
+            f"commissioned on {date}: "
+            + ", ".join(f"{k} x{fit_result.values[k] / fit_result.base[k]:.3f}" for k in fitted)
+            + (
+                f"; held at base: {', '.join(fit_result.not_determined)}"
+                if fit_result.not_determined
+                else ""
+            ),
+        ],
+        commissioning={
+            "date": date,
+            "emaprog_version": __version__,
+            "base": base.source_file,
+            "recordings": sources,
+            "fitted": fitted,
+            "not_determined": fit_result.not_determined,
+            "degenerate": fit_result.degenerate,
+            "residual": fit_result.residual,
+        },
     )
     text = yaml.safe_dump(spec, sort_keys=False, width=100)
     ParameterFile.model_validate(parse_mapping(text, name))  # loadable, or an internal error

@@ -119,8 +119,10 @@ STEP_SHARE = 2e-3
 #: the linearised error alone held the true hinge moment in 21 % of them and the resistance
 #: factor in 44 %; the commissioned set's own errors, e.g. in k_e, scale both), used for twin
 #: experiments too (which estimate nuisances only when asked).
-NUISANCE_ERROR = {"hinge_moment": ModelError(2.98, 0.0225, 0.0405),
-                  "resistance_factor": ModelError(14.1)}
+NUISANCE_ERROR = {
+    "hinge_moment": ModelError(2.98, 0.0225, 0.0405),
+    "resistance_factor": ModelError(14.1),
+}
 #: The fault quantities' laws for a unit identified against a set that was not fitted to it
 #: (:func:`basis_of` "shipped": the shipped set on a real actuator), calibrated like the
 #: others on ``campaigns/calibration-uncommissioned.yaml`` (400 spread units, no
@@ -163,8 +165,11 @@ class Confidence(NamedTuple):
 def noise_floor(objective: Objective, trace, fitness: float) -> NoiseFloor:
     """The recording's noise floor in fitness units, and how far the fit is above it."""
     sensors = objective.params.plant.sensors
-    lsb = {"current": sensors.current_lsb, "position": sensors.position_lsb,
-           "speed": sensors.speed_lsb}
+    lsb = {
+        "current": sensors.current_lsb,
+        "position": sensors.position_lsb,
+        "speed": sensors.speed_lsb,
+    }
     target = objective.target
     weight = target.sample_weight
     total = float(weight.sum())
@@ -174,7 +179,7 @@ def noise_floor(objective: Objective, trace, fitness: float) -> NoiseFloor:
         if target.weights[s] == 0.0:
             continue
         measured = (target.current, target.position, target.speed)[s]
-        norm = max(float(weight @ measured ** 2), 1e-30)
+        norm = max(float(weight @ measured**2), 1e-30)
         floor += target.weights[s] * total * sigma[name] ** 2 / objective.measured_width / norm
     floor = max(floor, 1e-30)
     ratio = fitness / floor
@@ -186,20 +191,26 @@ def uninformative(objective: Objective, trace, floor: NoiseFloor) -> str | None:
     weight = objective.target.sample_weight
     fitted = float(weight.sum()) / trace.sample_rate
     if fitted < MIN_FIT_SECONDS:
-        return (f"the recording is too short to judge: {fitted:.3g} s fitted (after the "
-                f"start-up window), at least {MIN_FIT_SECONDS:g} s of the standard test command "
-                "are needed")
+        return (
+            f"the recording is too short to judge: {fitted:.3g} s fitted (after the "
+            f"start-up window), at least {MIN_FIT_SECONDS:g} s of the standard test command "
+            "are needed"
+        )
     limit = objective.params.spec.controller.speed_limit
     speed = np.abs(low_pass(trace["speed"], objective.measured_width))
     peak = float(np.max(speed[weight > 0])) if np.any(weight > 0) else 0.0
     if peak < MIN_PEAK_SPEED_SHARE * limit:
-        return (f"the recording does not excite the actuator: peak motor speed {peak:.3g} rad/s, "
-                f"below {MIN_PEAK_SPEED_SHARE:.0%} of the {limit:g} rad/s limit (at rest, or a "
-                "command too small to pass the friction); record the standard test command")
+        return (
+            f"the recording does not excite the actuator: peak motor speed {peak:.3g} rad/s, "
+            f"below {MIN_PEAK_SPEED_SHARE:.0%} of the {limit:g} rad/s limit (at rest, or a "
+            "command too small to pass the friction); record the standard test command"
+        )
     if floor.fitness > MAX_FLOOR_SHARE:
-        return (f"the recording is mostly noise: its noise floor is {floor.fitness:.2g} of the "
-                f"filtered signal's energy (at most {MAX_FLOOR_SHARE:g}), so no fit can be told "
-                "from another")
+        return (
+            f"the recording is mostly noise: its noise floor is {floor.fitness:.2g} of the "
+            f"filtered signal's energy (at most {MAX_FLOOR_SHARE:g}), so no fit can be told "
+            "from another"
+        )
     return None
 
 
@@ -321,7 +332,8 @@ def is_twin(trace, params) -> bool:
     values = params.values()
     return meta.get("model") == "reference" and all(
         recorded.get(section) == values[section]
-        for section in ("electrical", "mechanical", "controller", "sensors"))
+        for section in ("electrical", "mechanical", "controller", "sensors")
+    )
 
 
 def _values(base: dict[str, float], point: dict[str, float]) -> dict[str, float]:
@@ -335,8 +347,9 @@ def _values(base: dict[str, float], point: dict[str, float]) -> dict[str, float]
     return out
 
 
-def residual_vector(objective: Objective, values: dict[str, float],
-                    plant: Plant | None = None) -> tuple[np.ndarray, list[int]]:
+def residual_vector(
+    objective: Objective, values: dict[str, float], plant: Plant | None = None
+) -> tuple[np.ndarray, list[int]]:
     """The weighted, filtered residual whose squared norm is the fitness, and its blocks
     (one per signal the fitness uses)."""
     residual = objective.residuals(objective.genes_for(values)[None], plant)[0]
@@ -344,7 +357,9 @@ def residual_vector(objective: Objective, values: dict[str, float],
     return residual, [residual.size // signals] * signals
 
 
-def jacobian(objective: Objective, values: dict[str, float]) -> tuple[list[_Coordinate], np.ndarray]:
+def jacobian(
+    objective: Objective, values: dict[str, float]
+) -> tuple[list[_Coordinate], np.ndarray]:
     """d residual / d coordinate at ``values`` (central differences, one-sided at a bound),
     every perturbed Monitor in one batch, with unquantised feedback."""
     coords, point = _coordinates(objective, values)
@@ -394,9 +409,17 @@ def quantity_interval(name: str, value, se):
     return (float(low), float(high)) if np.ndim(low) == 0 else (low, high)
 
 
-def assess(objective: Objective, trace, values: dict[str, float], fitness: float,
-           estimated: list[str], health_limits, twin: bool = False,
-           basis: str | None = None, echo: dict | None = None) -> Confidence:
+def assess(
+    objective: Objective,
+    trace,
+    values: dict[str, float],
+    fitness: float,
+    estimated: list[str],
+    health_limits,
+    twin: bool = False,
+    basis: str | None = None,
+    echo: dict | None = None,
+) -> Confidence:
     """Noise floor, intervals, identifiability and isolation of one identification;
     ``basis`` (:data:`BASES`) which model-error laws apply (default: twin or unit);
     ``echo`` (:mod:`.echo`, ``{"reasons", "errors"}``) the echo twin's error per quantity:
@@ -407,8 +430,10 @@ def assess(objective: Objective, trace, values: dict[str, float], fitness: float
     residual, blocks = residual_vector(objective, values)
     coords, jac = jacobian(objective, values)
     cov = covariance(jac, residual, blocks)
-    linear = {c.name: math.sqrt(cov[k, k]) if np.isfinite(cov[k, k]) else math.inf
-              for k, c in enumerate(coords)}
+    linear = {
+        c.name: math.sqrt(cov[k, k]) if np.isfinite(cov[k, k]) else math.inf
+        for k, c in enumerate(coords)
+    }
     plane = (PLANE.x, PLANE.y) if PLANE else ()
     if PLANE and PLANE.x in linear:  # the plane's errors along and across the estimate
         k = [i for i, c in enumerate(coords) if c.name in plane]
@@ -417,20 +442,23 @@ def assess(objective: Objective, trace, values: dict[str, float], fitness: float
         radial = np.array([math.cos(phase), math.sin(phase)])
         tangent = np.array([-math.sin(phase), math.cos(phase)])
         finite = bool(np.all(np.isfinite(block)))
-        linear[PLANE.magnitude] = (math.sqrt(max(float(radial @ block @ radial), 0.0))
-                                   if finite else math.inf)
+        linear[PLANE.magnitude] = (
+            math.sqrt(max(float(radial @ block @ radial), 0.0)) if finite else math.inf
+        )
         across = math.sqrt(max(float(tangent @ block @ tangent), 0.0)) if finite else math.inf
         linear[PLANE.angle] = across / zeta if zeta > 0 else math.inf
     interval, standard_error = {}, {}
-    load = fault_load(values, {f.name: getattr(health_limits, f.name).incipient
-                               for f in CATALOGUE})
+    load = fault_load(values, {f.name: getattr(health_limits, f.name).incipient for f in CATALOGUE})
     widening = mismatch_widening(floor.ratio, basis)
     # the echo's error less what its own noise explains: sign(e) sqrt(e^2 - sigma^2), with
     # sigma the linearised (noise) standard error; on twins with five times the noise the
     # raw error widened PSC B's intervals to 99 % coverage, this to 97 %
-    signed = {k: math.copysign(math.sqrt(max(e * e - linear.get(k, 0.0) ** 2, 0.0)), e)
-              if math.isfinite(linear.get(k, 0.0)) else 0.0
-              for k, e in (echo or {}).get("errors", {}).items()}
+    signed = {
+        k: math.copysign(math.sqrt(max(e * e - linear.get(k, 0.0) ** 2, 0.0)), e)
+        if math.isfinite(linear.get(k, 0.0))
+        else 0.0
+        for k, e in (echo or {}).get("errors", {}).items()
+    }
     echoed = {k: abs(v) for k, v in signed.items()}
     for name, s in linear.items():
         if name in plane:
@@ -440,25 +468,32 @@ def assess(objective: Objective, trace, values: dict[str, float], fitness: float
             deviation = abs(values[name] - NUISANCE_DEFAULTS[name])
             se = standard_error[name] = math.hypot(
                 widening * widened(quantity_error(name, basis), s, deviation, load),
-                echoed.get(name, 0.0))
+                echoed.get(name, 0.0),
+            )
             shift = signed.get(name, 0.0)
-            interval[name] = (min(values[name], values[name] - shift) - Z90 * se,
-                              max(values[name], values[name] - shift) + Z90 * se)
+            interval[name] = (
+                min(values[name], values[name] - shift) - Z90 * se,
+                max(values[name], values[name] - shift) + Z90 * se,
+            )
             continue
         deviation = 0.0 if q.circular else abs(values[name] - q.healthy)
         standard_error[name] = math.hypot(
             widening * widened(quantity_error(name, basis), s, deviation, load),
-            echoed.get(name, 0.0))
+            echoed.get(name, 0.0),
+        )
         if q.circular:
             arc = Z90 * standard_error[name] + echoed.get(name, 0.0)
-            interval[name] = ((0.0, 2.0 * math.pi) if arc >= math.pi
-                              else (values[name] - arc, values[name] + arc))
+            interval[name] = (
+                (0.0, 2.0 * math.pi) if arc >= math.pi else (values[name] - arc, values[name] + arc)
+            )
         else:
             interval[name] = quantity_interval(name, values[name], standard_error[name])
             if name in signed:  # and about the echo's bias-corrected estimate
                 other = quantity_interval(name, values[name] - signed[name], standard_error[name])
-                interval[name] = (min(interval[name][0], other[0]),
-                                  max(interval[name][1], other[1]))
+                interval[name] = (
+                    min(interval[name][0], other[0]),
+                    max(interval[name][1], other[1]),
+                )
     linear = {name: s for name, s in linear.items() if name not in plane}
     inconclusive = {}
     why_not = uninformative(objective, trace, floor)
@@ -467,43 +502,68 @@ def assess(objective: Objective, trace, values: dict[str, float], fitness: float
             inconclusive[fault] = why_not
             continue
         if not floor.explained:
-            inconclusive[fault] = (f"the Monitor does not explain the recording: fitness "
-                                   f"{fitness:.3g} is {floor.ratio:.0f} x the recording's noise "
-                                   f"floor {floor.fitness:.3g} (at most {MAX_FLOOR_RATIO:g} x)")
+            inconclusive[fault] = (
+                f"the Monitor does not explain the recording: fitness "
+                f"{fitness:.3g} is {floor.ratio:.0f} x the recording's noise "
+                f"floor {floor.fitness:.3g} (at most {MAX_FLOOR_RATIO:g} x)"
+            )
             continue
         threshold = getattr(health_limits, fault).incipient
         low, high = severity_interval(fault, interval)
         if not math.isfinite(high) or (low <= 0.0 and high >= threshold):
-            inconclusive[fault] = (f"the recording cannot tell nominal from incipient: the 90 % "
-                                   f"interval of its severity, [{low:.3g}, {high:.3g}], holds the "
-                                   f"healthy value and reaches the incipient threshold "
-                                   f"{threshold:g}")
-    isolation = _isolation(objective, values, fitness, residual.size,
-                           correlation_length(residual, blocks)) \
-        if PHASE_FAULT in estimated else None
-    described = {"twin": "twin experiment (the trace is the Reference Model with this very set)",
-                 "unit": "a unit's own parameter set",
-                 "shipped": "a parameter set not fitted to this unit"}[basis]
-    method = ("linearised (sandwich) covariance of the weighted least-squares fit at the "
-              "estimate, correlated residuals counted by their correlation length, widened by "
-              f"each quantity's model-error law for {described}, sqrt((factor sigma)^2 + (share "
-              "deviation from healthy)^2 + (load fault_load)^2) (factor/share/load: "
-              + ", ".join("{} {:g}/{:g}/{:g}".format(name, *quantity_error(name, basis))
-                          for name in [*QUANTITIES, *(n for n in NUISANCE_DEFAULTS
-                                                      if n in standard_error)])
-              + f"; fault load {load:.3g}; calibrated on separate calibration campaigns to "
-              f"90 % coverage; x{widening:.3g} for a fit {floor.ratio:.3g} x its noise floor, "
-              f"over the {MISMATCH_RATIO[basis]:g} x the laws were calibrated under)")
+            inconclusive[fault] = (
+                f"the recording cannot tell nominal from incipient: the 90 % "
+                f"interval of its severity, [{low:.3g}, {high:.3g}], holds the "
+                f"healthy value and reaches the incipient threshold "
+                f"{threshold:g}"
+            )
+    isolation = (
+        _isolation(objective, values, fitness, residual.size, correlation_length(residual, blocks))
+        if PHASE_FAULT in estimated
+        else None
+    )
+    described = {
+        "twin": "twin experiment (the trace is the Reference Model with this very set)",
+        "unit": "a unit's own parameter set",
+        "shipped": "a parameter set not fitted to this unit",
+    }[basis]
+    method = (
+        "linearised (sandwich) covariance of the weighted least-squares fit at the "
+        "estimate, correlated residuals counted by their correlation length, widened by "
+        f"each quantity's model-error law for {described}, sqrt((factor sigma)^2 + (share "
+        "deviation from healthy)^2 + (load fault_load)^2) (factor/share/load: "
+        + ", ".join(
+            "{} {:g}/{:g}/{:g}".format(name, *quantity_error(name, basis))
+            for name in [*QUANTITIES, *(n for n in NUISANCE_DEFAULTS if n in standard_error)]
+        )
+        + f"; fault load {load:.3g}; calibrated on separate calibration campaigns to "
+        f"90 % coverage; x{widening:.3g} for a fit {floor.ratio:.3g} x its noise floor, "
+        f"over the {MISMATCH_RATIO[basis]:g} x the laws were calibrated under)"
+    )
     if echo:
-        method += ("; off the calibration (" + "; ".join(echo["reasons"]) + "): each standard "
-                   "error takes the echo twin's error in quadrature and the interval spans the one "
-                   "about the estimate less that error (docs/reference.md, Confidence)")
-    return Confidence(floor, interval, standard_error, inconclusive, isolation, method, twin,
-                      linear, load, basis, echo)
+        method += (
+            "; off the calibration (" + "; ".join(echo["reasons"]) + "): each standard "
+            "error takes the echo twin's error in quadrature and the interval spans the one "
+            "about the estimate less that error (docs/reference.md, Confidence)"
+        )
+    return Confidence(
+        floor,
+        interval,
+        standard_error,
+        inconclusive,
+        isolation,
+        method,
+        twin,
+        linear,
+        load,
+        basis,
+        echo,
+    )
 
 
-def _isolation(objective: Objective, values: dict[str, float], fitness: float, samples: int,
-               length: float) -> dict | None:
+def _isolation(
+    objective: Objective, values: dict[str, float], fitness: float, samples: int, length: float
+) -> dict | None:
     """Confidence in the named short-circuit phase against the runner-up (module docstring)."""
     named = worst_phase(values)
     if named is None:
@@ -516,12 +576,12 @@ def _isolation(objective: Objective, values: dict[str, float], fitness: float, s
     effective = max(samples / max(length, 1.0), 1.0)
     delta = max(alternative - fitness, 0.0) / max(fitness, 1e-300) * effective
     confidence = 1.0 / (1.0 + math.exp(-min(delta, 1400.0) / 2.0))
-    return {"phase": named, "runner_up": runner, "delta_chi2": delta,
-            "confidence": confidence}
+    return {"phase": named, "runner_up": runner, "delta_chi2": delta, "confidence": confidence}
 
 
 def confidence_record(confidence: Confidence) -> dict:
     """The report's ``confidence`` key (JSON types; an unbounded error is null)."""
+
     def finite(x: float) -> float | None:
         return float(x) if math.isfinite(x) else None
 
@@ -530,20 +590,28 @@ def confidence_record(confidence: Confidence) -> dict:
         "method": confidence.method,
         "model_error_basis": confidence.basis,
         "fault_load": confidence.fault_load,
-        "noise_floor": {"sigma": floor.sigma, "fitness": floor.fitness, "ratio": floor.ratio,
-                        "explained": floor.explained,
-                        "rule": f"explained when fitness <= {MAX_FLOOR_RATIO:g} x the floor"},
+        "noise_floor": {
+            "sigma": floor.sigma,
+            "fitness": floor.fitness,
+            "ratio": floor.ratio,
+            "explained": floor.explained,
+            "rule": f"explained when fitness <= {MAX_FLOOR_RATIO:g} x the floor",
+        },
         "standard_error": {q: finite(v) for q, v in confidence.standard_error.items()},
         "inconclusive": confidence.inconclusive,
         "isolation": confidence.isolation,
-        "echo": ({"reasons": confidence.echo["reasons"],
-                  "errors": {q: float(v) for q, v in confidence.echo["errors"].items()}}
-                 if confidence.echo else None),
+        "echo": (
+            {
+                "reasons": confidence.echo["reasons"],
+                "errors": {q: float(v) for q, v in confidence.echo["errors"].items()},
+            }
+            if confidence.echo
+            else None
+        ),
     }
 
 
-def severity_interval(fault: str,
-                      interval: dict[str, tuple[float, float]]) -> tuple[float, float]:
+def severity_interval(fault: str, interval: dict[str, tuple[float, float]]) -> tuple[float, float]:
     """Range of the fault's severity (:func:`~emaprog.faults.severity`) over its magnitudes'
     intervals: 0 at the low end when an interval holds the healthy value."""
     lows, highs = [], []
@@ -553,5 +621,3 @@ def severity_interval(fault: str,
         lows.append(lo_s)
         highs.append(max(abs(low - q.healthy), abs(high - q.healthy)))
     return max(lows), max(highs)
-
-

@@ -40,8 +40,13 @@ def is_real_unit(metadata: dict | None, params: Parameters) -> bool:
     return model not in ("reference", "monitor") or params.spec.commissioning is not None
 
 
-def resolve(settings: IdentifySettings, metadata: dict | None, params: Parameters,
-            nuisances: list[str] | None = None, real_unit: bool | None = None) -> Resolved:
+def resolve(
+    settings: IdentifySettings,
+    metadata: dict | None,
+    params: Parameters,
+    nuisances: list[str] | None = None,
+    real_unit: bool | None = None,
+) -> Resolved:
     """``settings`` with the open choices made (module docstring); ``nuisances`` (the
     command line's ``--nuisances``) overrides the settings' own; ``real_unit`` says what the
     trace is where its metadata cannot (a campaign's spread or commissioned unit)."""
@@ -60,8 +65,9 @@ def resolve(settings: IdentifySettings, metadata: dict | None, params: Parameter
     if settings.nominal_correction is None:
         commissioned = params.spec.commissioning is not None
         update["nominal_correction"] = "recording" if commissioned else "reference"
-        notes["nominal_correction"] = ("default for a commissioned unit" if commissioned
-                                       else f"default for {what}")
+        notes["nominal_correction"] = (
+            "default for a commissioned unit" if commissioned else f"default for {what}"
+        )
     else:
         notes["nominal_correction"] = "identify.nominal_correction"
     return Resolved(settings.model_copy(update=update), real, notes)

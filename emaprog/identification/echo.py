@@ -46,20 +46,22 @@ CALIBRATED_SECONDS = 0.45
 ECHO_SEED = 20261201
 
 
-def off_calibration(trace: Trace, noise: dict[str, float], ratio: float,
-                    ratio_limit: float) -> list[str]:
+def off_calibration(
+    trace: Trace, noise: dict[str, float], ratio: float, ratio_limit: float
+) -> list[str]:
     """Why a recording is off the conditions the model-error laws were calibrated under
     (empty: it is not). ``noise``: per signal, the recording's noise sigma; ``ratio``: its
     fit-to-floor ratio, against ``ratio_limit`` (its basis's calibration ratio)."""
     reasons = []
     if math.isfinite(ratio) and ratio > ratio_limit:
         reasons.append(f"fit {ratio:.3g} x its noise floor (calibrated up to {ratio_limit:g} x)")
-    recorded = [s for s in CALIBRATED_NOISE
-                if not (s == "speed" and _speed_derived(trace))]
+    recorded = [s for s in CALIBRATED_NOISE if not (s == "speed" and _speed_derived(trace))]
     noisiest = max(recorded, key=lambda s: noise[s] / CALIBRATED_NOISE[s])
     if noise[noisiest] / CALIBRATED_NOISE[noisiest] > NOISE_LIMIT:
-        reasons.append(f"{noisiest} noise {noise[noisiest] / CALIBRATED_NOISE[noisiest]:.3g} x "
-                       f"the calibration's (at most {NOISE_LIMIT:g} x)")
+        reasons.append(
+            f"{noisiest} noise {noise[noisiest] / CALIBRATED_NOISE[noisiest]:.3g} x "
+            f"the calibration's (at most {NOISE_LIMIT:g} x)"
+        )
     duration = float(trace.time[-1] - trace.time[0])
     if duration < CALIBRATED_SECONDS:
         reasons.append(f"{duration:.3g} s long (calibrated on {CALIBRATED_SECONDS:g} s and more)")
@@ -67,7 +69,7 @@ def off_calibration(trace: Trace, noise: dict[str, float], ratio: float,
 
 
 def _speed_derived(trace: Trace) -> bool:
-    speed = ((getattr(trace, "metadata", None) or {}).get("speed") or {})
+    speed = (getattr(trace, "metadata", None) or {}).get("speed") or {}
     return speed.get("source", "recorded") != "recorded"
 
 
@@ -77,8 +79,11 @@ def _noisy_set(params: Parameters, trace: Trace, noise: dict[str, float]) -> Par
 
     spec = params.spec.model_dump(mode="json")
     sensors = spec["sensors"]
-    for signal, key in (("position", "position_noise"), ("speed", "speed_noise"),
-                        ("current", "current_noise")):
+    for signal, key in (
+        ("position", "position_noise"),
+        ("speed", "speed_noise"),
+        ("current", "current_noise"),
+    ):
         if signal == "speed" and _speed_derived(trace):
             continue
         ratio = noise[signal] / CALIBRATED_NOISE[signal]
@@ -86,9 +91,14 @@ def _noisy_set(params: Parameters, trace: Trace, noise: dict[str, float]) -> Par
     return derive(ParameterFile.model_validate(spec), params.source_file)
 
 
-def echo_errors(objective: Objective, trace: Trace, estimate: dict[str, float],
-                settings: IdentifySettings, noise: dict[str, float],
-                numerics: Numerics = DEFAULT) -> dict[str, float]:
+def echo_errors(
+    objective: Objective,
+    trace: Trace,
+    estimate: dict[str, float],
+    settings: IdentifySettings,
+    noise: dict[str, float],
+    numerics: Numerics = DEFAULT,
+) -> dict[str, float]:
     """Per estimated quantity (and nuisance), the echo's estimate minus its truth (module
     docstring); the eccentricity phase as the shorter arc."""
     from ..config.parameters import scaled
@@ -101,17 +111,29 @@ def echo_errors(objective: Objective, trace: Trace, estimate: dict[str, float],
     if factor != 1.0:
         unit = scaled(unit, {"phase_resistance": factor}, unit.source_file)
     inputs = objective.inputs
-    columns, _ = reference.run(unit, inputs, reference_form({q: truth[q] for q in QUANTITIES}),
-                               ECHO_SEED, hinge_moment=float(truth.get("hinge_moment", 0.0)))
+    columns, _ = reference.run(
+        unit,
+        inputs,
+        reference_form({q: truth[q] for q in QUANTITIES}),
+        ECHO_SEED,
+        hinge_moment=float(truth.get("hinge_moment", 0.0)),
+    )
     # the echo at the recording's own instants (its rate and start)
     instants = recorded_instants(trace.time, inputs.time)
-    echoed = {name: instants.sample(np.asarray(columns[name])) for name in
-              ("command", "position", "speed", "current")}
+    echoed = {
+        name: instants.sample(np.asarray(columns[name]))
+        for name in ("command", "position", "speed", "current")
+    }
     echoed["time"] = np.asarray(trace.time, dtype=np.float64) - float(trace.time[0])
     echo = Trace(echoed, {"model": "echo", "speed": {"source": "recorded"}})
     applied = objective.correction.applied
-    correction = (objective.correction if applied == "reference" else NO_CORRECTION
-                  if applied == "none" else reference_correction(inputs, params, numerics))
+    correction = (
+        objective.correction
+        if applied == "reference"
+        else NO_CORRECTION
+        if applied == "none"
+        else reference_correction(inputs, params, numerics)
+    )
     again = Objective(echo, inputs, params, settings, numerics, correction)
     genes, _ = _least_squares(again, PolishCoordinates(again), again.genes_for(truth))
     found = again.values(genes)

@@ -77,8 +77,13 @@ def _tournament(fitness: np.ndarray, count: int, size: int, rng: np.random.Gener
     return entrants[np.arange(count), np.argmin(fitness[entrants], axis=1)]
 
 
-def _offspring(parents: np.ndarray, circular: np.ndarray, options: GAOptions, sigma: float,
-               rng: np.random.Generator) -> np.ndarray:
+def _offspring(
+    parents: np.ndarray,
+    circular: np.ndarray,
+    options: GAOptions,
+    sigma: float,
+    rng: np.random.Generator,
+) -> np.ndarray:
     """BLX-alpha crossover on pairs, then Gaussian mutation; all genes stay in [0, 1]."""
     children = parents.copy()
     m, d = children.shape
@@ -99,10 +104,15 @@ def _offspring(parents: np.ndarray, circular: np.ndarray, options: GAOptions, si
     return _wrap_or_reflect(children, circular)
 
 
-def minimize(fitness_of: BatchFitness, dims: int, options: GAOptions | None = None,
-             seed: int = 0, circular: Sequence[bool] | np.ndarray | None = None,
-             initial: np.ndarray | None = None,
-             on_generation: Callable[[int, float], None] | None = None) -> GAResult:
+def minimize(
+    fitness_of: BatchFitness,
+    dims: int,
+    options: GAOptions | None = None,
+    seed: int = 0,
+    circular: Sequence[bool] | np.ndarray | None = None,
+    initial: np.ndarray | None = None,
+    on_generation: Callable[[int, float], None] | None = None,
+) -> GAResult:
     """Minimise ``fitness_of`` over [0, 1]^dims with the strategy ``options.strategy``.
 
     The first population is a Latin hypercube (every gene's range covered
@@ -117,8 +127,9 @@ def minimize(fitness_of: BatchFitness, dims: int, options: GAOptions | None = No
     return _numpy_ga(fitness_of, dims, options, seed, circular, initial, on_generation)
 
 
-def _first_population(rng: np.random.Generator, m: int, dims: int,
-                      initial: np.ndarray | None) -> np.ndarray:
+def _first_population(
+    rng: np.random.Generator, m: int, dims: int, initial: np.ndarray | None
+) -> np.ndarray:
     """A Latin hypercube of ``m`` rows, ``initial`` rows in front."""
     population = (np.argsort(rng.random((m, dims)), axis=0) + rng.random((m, dims))) / m
     if initial is not None and len(initial):
@@ -127,19 +138,29 @@ def _first_population(rng: np.random.Generator, m: int, dims: int,
     return population
 
 
-def _deap_ga(fitness_of: BatchFitness, dims: int, options: GAOptions, seed: int,
-             initial: np.ndarray | None,
-             on_generation: Callable[[int, float], None] | None) -> GAResult:
+def _deap_ga(
+    fitness_of: BatchFitness,
+    dims: int,
+    options: GAOptions,
+    seed: int,
+    initial: np.ndarray | None,
+    on_generation: Callable[[int, float], None] | None,
+) -> GAResult:
     """The ``deap`` strategy (module docstring): mu = lambda = the population, every
     generation to the end. The loop is ``algorithms.eaMuPlusLambda``'s (``varOr``, evaluate
     the new individuals, select mu of parents + offspring), written out to report each
     generation's progress."""
     m = options.population
     toolbox = base.Toolbox()
-    toolbox.register("mate", tools.cxSimulatedBinaryBounded, eta=options.sbx_eta, low=0.0,
-                     up=1.0)
-    toolbox.register("mutate", tools.mutPolynomialBounded, eta=options.polynomial_eta, low=0.0,
-                     up=1.0, indpb=1.0 / dims)
+    toolbox.register("mate", tools.cxSimulatedBinaryBounded, eta=options.sbx_eta, low=0.0, up=1.0)
+    toolbox.register(
+        "mutate",
+        tools.mutPolynomialBounded,
+        eta=options.polynomial_eta,
+        low=0.0,
+        up=1.0,
+        indpb=1.0 / dims,
+    )
     toolbox.register("select", tools.selTournament, tournsize=options.tournament)
     hall = tools.HallOfFame(1)
     stats = _statistics()
@@ -163,21 +184,29 @@ def _deap_ga(fitness_of: BatchFitness, dims: int, options: GAOptions, seed: int,
     try:
         random.seed(seed)
         rng = np.random.default_rng(np.random.SeedSequence(seed))
-        population = [creator.FaultCandidate(row.tolist())
-                      for row in _first_population(rng, m, dims, initial)]
+        population = [
+            creator.FaultCandidate(row.tolist()) for row in _first_population(rng, m, dims, initial)
+        ]
         evaluations = evaluate(population)
         record(0, evaluations, population, population)
         for gen in range(1, options.generations + 1):
-            offspring = algorithms.varOr(population, toolbox, m, options.crossover,
-                                         options.mutation)
+            offspring = algorithms.varOr(
+                population, toolbox, m, options.crossover, options.mutation
+            )
             nevals = evaluate(offspring)
             evaluations += nevals
             population = toolbox.select(population + offspring, m)
             record(gen, nevals, offspring, population)
     finally:
         random.setstate(state)
-    return GAResult(np.asarray(hall[0], float), float(hall[0].fitness.values[0]), evaluations,
-                    options.generations, logbook, "generations")
+    return GAResult(
+        np.asarray(hall[0], float),
+        float(hall[0].fitness.values[0]),
+        evaluations,
+        options.generations,
+        logbook,
+        "generations",
+    )
 
 
 def _statistics() -> tools.Statistics:
@@ -188,9 +217,15 @@ def _statistics() -> tools.Statistics:
     return stats
 
 
-def _numpy_ga(fitness_of: BatchFitness, dims: int, options: GAOptions, seed: int,
-              circular: Sequence[bool] | np.ndarray | None, initial: np.ndarray | None,
-              on_generation: Callable[[int, float], None] | None) -> GAResult:
+def _numpy_ga(
+    fitness_of: BatchFitness,
+    dims: int,
+    options: GAOptions,
+    seed: int,
+    circular: Sequence[bool] | np.ndarray | None,
+    initial: np.ndarray | None,
+    on_generation: Callable[[int, float], None] | None,
+) -> GAResult:
     """The ``numpy`` strategy: a generational GA (module docstring).
 
     Elitism keeps the ``elite`` best; a DEAP hall of fame keeps the best ever.
@@ -227,7 +262,8 @@ def _numpy_ga(fitness_of: BatchFitness, dims: int, options: GAOptions, seed: int
     generations = options.generations
     for gen in range(1, options.generations + 1):
         sigma = options.sigma_start * (options.sigma_end / options.sigma_start) ** (
-            (gen - 1) / max(options.generations - 1, 1))
+            (gen - 1) / max(options.generations - 1, 1)
+        )
         order = np.argsort(fitness, kind="stable")
         elite = population[order[: options.elite]]
         chosen = _tournament(fitness, m - options.elite, options.tournament, rng)
@@ -246,5 +282,6 @@ def _numpy_ga(fitness_of: BatchFitness, dims: int, options: GAOptions, seed: int
             stopped_by, generations = "stagnation", gen
             break
     best = np.asarray(hall[0], float)
-    return GAResult(best, float(hall[0].fitness.values[0]), evaluations, generations, logbook,
-                    stopped_by)
+    return GAResult(
+        best, float(hall[0].fitness.values[0]), evaluations, generations, logbook, stopped_by
+    )

@@ -158,9 +158,15 @@ def sample_weights(speed: np.ndarray, limit: float, first_sample: int) -> np.nda
 class Objective:
     """Batch fitness of gene rows against one measured trace (callable)."""
 
-    def __init__(self, trace: Trace, inputs: Inputs, params: Parameters,
-                 settings: IdentifySettings, numerics: Numerics = DEFAULT,
-                 correction: Correction = NO_CORRECTION):
+    def __init__(
+        self,
+        trace: Trace,
+        inputs: Inputs,
+        params: Parameters,
+        settings: IdentifySettings,
+        numerics: Numerics = DEFAULT,
+        correction: Correction = NO_CORRECTION,
+    ):
         self.params = params
         self.inputs = inputs
         self.numerics = numerics
@@ -175,8 +181,9 @@ class Objective:
         # A moving average over an even number of samples is centred half a sample early:
         # read the Monitor where its filtered value stands for the same instant as the
         # measurement's (no shift when both grids are the same).
-        shift = (filter_lag(self.filter_width, params.spec.controller.rate)
-                 - filter_lag(self.measured_width, recording_rate))
+        shift = filter_lag(self.filter_width, params.spec.controller.rate) - filter_lag(
+            self.measured_width, recording_rate
+        )
         self.instants = recorded_instants(trace.time, inputs.time, shift)
         n = trace.time.size
         self.correction = correction
@@ -187,16 +194,27 @@ class Objective:
             signal = correction.signals[name]
             return trace[name] - (self.instants.sample(signal) if correction.on_grid else signal)
 
-        current, position, speed = (low_pass(corrected(name), self.measured_width)
-                                    for name in ("current", "position", "speed"))
+        current, position, speed = (
+            low_pass(corrected(name), self.measured_width)
+            for name in ("current", "position", "speed")
+        )
         self.speed_limit = fit_speed_limit(settings, params)
-        sample_weight = sample_weights(low_pass(trace["speed"], self.measured_width),
-                                       self.speed_limit,
-                                       min(round(STARTUP_SECONDS * recording_rate), n // 10))
+        sample_weight = sample_weights(
+            low_pass(trace["speed"], self.measured_width),
+            self.speed_limit,
+            min(round(STARTUP_SECONDS * recording_rate), n // 10),
+        )
         w = settings.signals
-        self.target = ErrorTarget(current, position, speed, np.array([w.current, w.position, w.speed], dtype=np.float64),
-                                  self.filter_width, sample_weight, self.instants.index,
-                                  self.instants.fraction)
+        self.target = ErrorTarget(
+            current,
+            position,
+            speed,
+            np.array([w.current, w.position, w.speed], dtype=np.float64),
+            self.filter_width,
+            sample_weight,
+            self.instants.index,
+            self.instants.fraction,
+        )
         self.lower = np.array([g.lower for g in self.genes])
         self.span = np.array([g.upper - g.lower for g in self.genes])
         self.circular = np.array([g.circular for g in self.genes])
@@ -214,17 +232,22 @@ class Objective:
             if gene.circular:
                 out[gene.quantity] = float((x % 1.0) * TWO_PI)
             else:
-                out[gene.quantity] = float(gene.lower + min(max(x, 0.0), 1.0) * (gene.upper - gene.lower))
+                out[gene.quantity] = float(
+                    gene.lower + min(max(x, 0.0), 1.0) * (gene.upper - gene.lower)
+                )
         return out
 
     def genes_for(self, values: dict[str, float]) -> np.ndarray:
         """Inverse of :meth:`values` (clipped into the bounds)."""
         values = {**NUISANCE_DEFAULTS, **values}
-        return np.array([
-            (values[g.quantity] / TWO_PI) % 1.0 if g.circular
-            else min(max((values[g.quantity] - g.lower) / (g.upper - g.lower), 0.0), 1.0)
-            for g in self.genes
-        ])
+        return np.array(
+            [
+                (values[g.quantity] / TWO_PI) % 1.0
+                if g.circular
+                else min(max((values[g.quantity] - g.lower) / (g.upper - g.lower), 0.0), 1.0)
+                for g in self.genes
+            ]
+        )
 
     def kernel_rows(self, genes: np.ndarray) -> np.ndarray:
         """(m, 7) Monitor fault rows (:class:`~emaprog.faults.MonitorFaults` order, Z = c zeta)."""
@@ -236,7 +259,11 @@ class Objective:
                 continue
             col = genes[:, j]
             k = index[gene.quantity]
-            rows[:, k] = (col % 1.0) * TWO_PI if gene.circular else self.lower[j] + np.clip(col, 0, 1) * self.span[j]
+            rows[:, k] = (
+                (col % 1.0) * TWO_PI
+                if gene.circular
+                else self.lower[j] + np.clip(col, 0, 1) * self.span[j]
+            )
         rows[:, ZETA_COLUMN] *= self.eccentricity_gain
         return np.ascontiguousarray(rows)
 
@@ -258,8 +285,15 @@ class Objective:
     def __call__(self, genes: np.ndarray) -> np.ndarray:
         rows = self.kernel_rows(genes)
         fitness = np.empty(rows.shape[0])
-        evaluate_population(rows, self.unit_rows(genes), self.inputs.drive(), self.params.plant,
-                            self.options, self.target, fitness)
+        evaluate_population(
+            rows,
+            self.unit_rows(genes),
+            self.inputs.drive(),
+            self.params.plant,
+            self.options,
+            self.target,
+            fitness,
+        )
         self.evaluations += rows.shape[0]
         return fitness
 
@@ -269,9 +303,15 @@ class Objective:
         the set's (e.g. unquantised feedback for finite differences)."""
         rows = self.kernel_rows(genes)
         out = np.empty((rows.shape[0], 3, self.target.current.size))
-        evaluate_residuals(rows, self.unit_rows(genes), self.inputs.drive(),
-                           plant if plant is not None else self.params.plant, self.options,
-                           self.target, out)
+        evaluate_residuals(
+            rows,
+            self.unit_rows(genes),
+            self.inputs.drive(),
+            plant if plant is not None else self.params.plant,
+            self.options,
+            self.target,
+            out,
+        )
         self.evaluations += rows.shape[0]
         used = (self.target.weights[:, None] > 0.0) & (self.target.sample_weight[None, :] > 0.0)
         return out[:, used]
@@ -279,16 +319,23 @@ class Objective:
     def healthy_genes(self) -> np.ndarray:
         return self.genes_for(healthy_values())
 
-    def simulate(self, values: dict[str, float], plant: Plant | None = None) -> dict[str, np.ndarray]:
+    def simulate(
+        self, values: dict[str, float], plant: Plant | None = None
+    ) -> dict[str, np.ndarray]:
         """Monitor columns for one set of fault (and nuisance) values, not clipped to the
         search bounds; ``plant`` replaces the set's (its unit values still apply)."""
         values = {**healthy_values(), **NUISANCE_DEFAULTS, **values}
         unit = self.units[0].copy()
         unit[U_HINGE_MOMENT] = values["hinge_moment"]
         unit[U_PHASE_RESISTANCE] *= values["resistance_factor"]
-        return monitor.run(self.params, self.inputs, monitor_form(values, self.eccentricity_gain),
-                           opts=self.options, hinge_moment=float(unit[U_HINGE_MOMENT]),
-                           plant=unit_plant(plant if plant is not None else self.params.plant, unit))
+        return monitor.run(
+            self.params,
+            self.inputs,
+            monitor_form(values, self.eccentricity_gain),
+            opts=self.options,
+            hinge_moment=float(unit[U_HINGE_MOMENT]),
+            plant=unit_plant(plant if plant is not None else self.params.plant, unit),
+        )
 
 
 SIGNALS = ("current", "position", "speed")
@@ -305,9 +352,13 @@ FINE_QUANTISATION = 1e-9
 def fine_plant(plant: Plant) -> Plant:
     """``plant`` with its ADC steps shrunk by :data:`FINE_QUANTISATION` (smooth residuals)."""
     s = plant.sensors
-    return plant._replace(sensors=s._replace(position_lsb=s.position_lsb * FINE_QUANTISATION,
-                                             speed_lsb=s.speed_lsb * FINE_QUANTISATION,
-                                             current_lsb=s.current_lsb * FINE_QUANTISATION))
+    return plant._replace(
+        sensors=s._replace(
+            position_lsb=s.position_lsb * FINE_QUANTISATION,
+            speed_lsb=s.speed_lsb * FINE_QUANTISATION,
+            current_lsb=s.current_lsb * FINE_QUANTISATION,
+        )
+    )
 
 
 #: Nominal discrepancies already computed in this process, by set, inputs and numerics: the
@@ -324,8 +375,9 @@ def _discrepancy_key(inputs: Inputs, params: Parameters, numerics: Numerics) -> 
     return digest.hexdigest()
 
 
-def nominal_discrepancy(inputs: Inputs, params: Parameters,
-                        numerics: Numerics = DEFAULT) -> dict[str, np.ndarray]:
+def nominal_discrepancy(
+    inputs: Inputs, params: Parameters, numerics: Numerics = DEFAULT
+) -> dict[str, np.ndarray]:
     """Healthy Reference minus healthy Monitor, noise-free, on the same inputs (controller grid).
 
     Kept per process (read-only arrays) for the next identification with the same set,
@@ -344,12 +396,17 @@ def nominal_discrepancy(inputs: Inputs, params: Parameters,
     return _DISCREPANCIES[key]
 
 
-def reference_correction(inputs: Inputs, params: Parameters, numerics: Numerics = DEFAULT,
-                         note: str = "") -> Correction:
+def reference_correction(
+    inputs: Inputs, params: Parameters, numerics: Numerics = DEFAULT, note: str = ""
+) -> Correction:
     """The ``reference`` correction (see the module's docstring)."""
-    return Correction("reference", note or "healthy Reference minus healthy Monitor with the "
-                      "parameter set in use, on the trace's own command",
-                      nominal_discrepancy(inputs, params, numerics))
+    return Correction(
+        "reference",
+        note
+        or "healthy Reference minus healthy Monitor with the "
+        "parameter set in use, on the trace's own command",
+        nominal_discrepancy(inputs, params, numerics),
+    )
 
 
 class ResidualRecording(NamedTuple):
@@ -361,16 +418,25 @@ class ResidualRecording(NamedTuple):
     residual: dict[str, np.ndarray]
 
 
-def recording_residual(recording: Trace, rec_inputs: Inputs, params: Parameters,
-                       hinge_moment: float, source: str,
-                       numerics: Numerics = DEFAULT) -> ResidualRecording:
+def recording_residual(
+    recording: Trace,
+    rec_inputs: Inputs,
+    params: Parameters,
+    hinge_moment: float,
+    source: str,
+    numerics: Numerics = DEFAULT,
+) -> ResidualRecording:
     """The healthy recording minus the healthy Monitor of ``params`` under its hinge moment."""
-    mon = monitor.run(params, rec_inputs, monitor_form(healthy_values(), 1.0), numerics,
-                      hinge_moment=hinge_moment)
+    mon = monitor.run(
+        params, rec_inputs, monitor_form(healthy_values(), 1.0), numerics, hinge_moment=hinge_moment
+    )
     at = recorded_instants(recording.time, rec_inputs.time)
-    return ResidualRecording(source, recording.time - recording.time[0],
-                             np.asarray(recording["command"], float),
-                             {name: recording[name] - at.sample(mon[name]) for name in SIGNALS})
+    return ResidualRecording(
+        source,
+        recording.time - recording.time[0],
+        np.asarray(recording["command"], float),
+        {name: recording[name] - at.sample(mon[name]) for name in SIGNALS},
+    )
 
 
 #: [-] largest command difference, over the command's RMS, for which an inspection repeats
@@ -381,14 +447,21 @@ SAME_COMMAND = 1e-3
 def recording_correction(trace: Trace, recording: ResidualRecording) -> Correction | str:
     """The ``recording`` correction for ``trace``, or why it does not apply."""
     time = trace.time - trace.time[0]
-    if time.size != recording.time.size or not np.allclose(time, recording.time, rtol=0.0,
-                                                             atol=1e-3 / trace.sample_rate):
-        return (f"the commissioning recording {recording.source} has another sample grid "
-                f"({recording.time.size} samples, the trace {time.size})")
+    if time.size != recording.time.size or not np.allclose(
+        time, recording.time, rtol=0.0, atol=1e-3 / trace.sample_rate
+    ):
+        return (
+            f"the commissioning recording {recording.source} has another sample grid "
+            f"({recording.time.size} samples, the trace {time.size})"
+        )
     command = np.asarray(trace["command"], float)
-    scale = max(float(np.sqrt(np.mean(command ** 2))), 1e-12)
+    scale = max(float(np.sqrt(np.mean(command**2))), 1e-12)
     if float(np.max(np.abs(command - recording.command))) > SAME_COMMAND * scale:
         return f"the trace's command is not the commissioning recording's ({recording.source})"
-    return Correction("recording", f"residual of the commissioning recording {recording.source} "
-                      "(recording minus the healthy Monitor of the commissioned set)",
-                      recording.residual, on_grid=False)
+    return Correction(
+        "recording",
+        f"residual of the commissioning recording {recording.source} "
+        "(recording minus the healthy Monitor of the commissioned set)",
+        recording.residual,
+        on_grid=False,
+    )

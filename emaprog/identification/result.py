@@ -10,8 +10,12 @@ from ..faults import CATALOGUE, severity
 VERDICTS = ("nominal", "incipient", "degraded", "inconclusive")
 
 
-def health(values: dict[str, float], faults: list[str], params: Parameters,
-           inconclusive: dict[str, str] | None = None) -> dict[str, str]:
+def health(
+    values: dict[str, float],
+    faults: list[str],
+    params: Parameters,
+    inconclusive: dict[str, str] | None = None,
+) -> dict[str, str]:
     """Verdict per estimated fault: below ``incipient`` nominal, below ``degraded`` incipient;
     ``inconclusive`` for the faults the recording cannot tell (their reasons' keys)."""
     verdicts = {}
@@ -21,8 +25,9 @@ def health(values: dict[str, float], faults: list[str], params: Parameters,
             continue
         limit = getattr(params.spec.health, fault)
         s = severity(fault, values)
-        verdicts[fault] = ("nominal" if s < limit.incipient
-                           else "incipient" if s < limit.degraded else "degraded")
+        verdicts[fault] = (
+            "nominal" if s < limit.incipient else "incipient" if s < limit.degraded else "degraded"
+        )
     return verdicts
 
 

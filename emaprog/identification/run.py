@@ -38,7 +38,7 @@ REFINE_STEPS = 30
 #: Finite-difference step of the least-squares polish's Jacobian [polish coordinates, of 1].
 JACOBIAN_STEP = 1e-3
 #: The GA's (population, generations) when the settings leave them out: 32 x 20 in front of
-#: the least-squares polish (README: as accurate as 64 x 40 on the campaigns, a quarter of the
+#: the least-squares polish (docs/explanation/validation-and-speed.md: as accurate as 64 x 40 on the campaigns, a quarter of the
 #: Monitor runs), :data:`LOW_RATE_GA` for a recording slower than :data:`LOW_RATE` [Hz], where
 #: the aliased commutation structure makes the search harder. Measured
 #: (``benchmarks/rates.py``, 10 regression cases) at 1 kHz: 32 x 20 within tolerance on the
@@ -52,8 +52,10 @@ LOW_RATE = 2500.0
 def ga_budget(ga, sample_rate: float) -> tuple[int, int]:
     """(population, generations) of ``identify.ga`` for a recording at ``sample_rate`` [Hz]."""
     population, generations = DEFAULT_GA if sample_rate >= LOW_RATE else LOW_RATE_GA
-    return (population if ga.population is None else ga.population,
-            generations if ga.generations is None else ga.generations)
+    return (
+        population if ga.population is None else ga.population,
+        generations if ga.generations is None else ga.generations,
+    )
 
 
 class Identification(NamedTuple):
@@ -79,9 +81,13 @@ MIN_RATE = 1000.0
 def check_sampling(trace: Trace, source: str) -> None:
     """A trace at any rate from :data:`MIN_RATE` up is fine; slower ones are refused."""
     if trace.sample_rate < MIN_RATE * (1.0 - 1e-6):
-        raise InputError(source, f"trace is sampled at {trace.sample_rate:.6g} Hz; identification "
-                         f"needs at least {MIN_RATE:g} Hz (the error's 1 ms filter and the "
-                         "commutation effects the faults show through)", "time")
+        raise InputError(
+            source,
+            f"trace is sampled at {trace.sample_rate:.6g} Hz; identification "
+            f"needs at least {MIN_RATE:g} Hz (the error's 1 ms filter and the "
+            "commutation effects the faults show through)",
+            "time",
+        )
 
 
 class PolishCoordinates:
@@ -99,8 +105,9 @@ class PolishCoordinates:
         names = [g.quantity for g in objective.genes]
         polar = [tuple(q.name for q in f.quantities) for f in CATALOGUE if f.layout == "polar"]
         self.pair = next(((names.index(m), names.index(a)) for m, a in polar if m in names), None)
-        self.bounds = [(-1.0, 1.0) if self.pair and j in self.pair else (0.0, 1.0)
-                       for j in range(len(names))]
+        self.bounds = [
+            (-1.0, 1.0) if self.pair and j in self.pair else (0.0, 1.0) for j in range(len(names))
+        ]
 
     def coordinates(self, genes: np.ndarray) -> np.ndarray:
         u = np.array(genes, float)
@@ -136,8 +143,10 @@ def single_phase_starts(objective: Objective, genes: np.ndarray) -> list[np.ndar
     values = objective.values(genes)
     phases = [q.name for q in FAULTS[PHASE_FAULT].quantities]
     fractions = {name: values[name] for name in phases}
-    if phases[0] not in {g.quantity for g in objective.genes} or \
-            sum(v > 0 for v in fractions.values()) <= 1:
+    if (
+        phases[0] not in {g.quantity for g in objective.genes}
+        or sum(v > 0 for v in fractions.values()) <= 1
+    ):
         return []
     candidates = []
     for phase in phases:
@@ -148,16 +157,22 @@ def single_phase_starts(objective: Objective, genes: np.ndarray) -> list[np.ndar
     return [candidates[int(np.argmin(fitness))]]
 
 
-def _powell(objective: Objective, plane: PolishCoordinates,
-            origin: np.ndarray) -> tuple[np.ndarray, float]:
-    found = local_minimize(lambda u: float(objective(plane.genes(u)[None])[0]),
-                           plane.coordinates(origin), method="Powell", bounds=plane.bounds,
-                           options={"maxfev": REFINE_EVALUATIONS, "xtol": 1e-4, "ftol": 1e-6})
+def _powell(
+    objective: Objective, plane: PolishCoordinates, origin: np.ndarray
+) -> tuple[np.ndarray, float]:
+    found = local_minimize(
+        lambda u: float(objective(plane.genes(u)[None])[0]),
+        plane.coordinates(origin),
+        method="Powell",
+        bounds=plane.bounds,
+        options={"maxfev": REFINE_EVALUATIONS, "xtol": 1e-4, "ftol": 1e-6},
+    )
     return plane.genes(found.x), float(found.fun)
 
 
-def _least_squares(objective: Objective, plane: PolishCoordinates,
-                   origin: np.ndarray) -> tuple[np.ndarray, float]:
+def _least_squares(
+    objective: Objective, plane: PolishCoordinates, origin: np.ndarray
+) -> tuple[np.ndarray, float]:
     """Trust-region least squares on the residual vector, its Jacobian one batch per step."""
     lower = np.array([b[0] for b in plane.bounds])
     upper = np.array([b[1] for b in plane.bounds])
@@ -180,8 +195,17 @@ def _least_squares(objective: Objective, plane: PolishCoordinates,
         return ((moved - base[None, :]) / steps[:, None]).T
 
     with serial_blas():
-        found = least_squares(fun, start, jac=jac, bounds=(lower, upper), method="trf",
-                              x_scale=1.0, xtol=1e-6, ftol=1e-8, max_nfev=REFINE_STEPS)
+        found = least_squares(
+            fun,
+            start,
+            jac=jac,
+            bounds=(lower, upper),
+            method="trf",
+            x_scale=1.0,
+            xtol=1e-6,
+            ftol=1e-8,
+            max_nfev=REFINE_STEPS,
+        )
     genes = plane.genes(found.x)
     return genes, float(objective(genes[None])[0])  # with the real ADC
 
@@ -189,8 +213,9 @@ def _least_squares(objective: Objective, plane: PolishCoordinates,
 POLISHERS = {"powell": _powell, "least_squares": _least_squares}
 
 
-def polish(objective: Objective, start: np.ndarray, fitness: float,
-           method: str = "least_squares") -> tuple[np.ndarray, float, bool]:
+def polish(
+    objective: Objective, start: np.ndarray, fitness: float, method: str = "least_squares"
+) -> tuple[np.ndarray, float, bool]:
     """The local search after a global one, in :class:`PolishCoordinates`: ``powell``
     (bounded Powell, one Monitor run at a time) or ``least_squares`` (trust-region
     least squares on the residual vector, the Jacobian in one batch per step); from
@@ -209,9 +234,14 @@ def polish(objective: Objective, start: np.ndarray, fitness: float,
     return best, best_fitness, refined
 
 
-def choose_correction(trace: Trace, inputs: Inputs, params: Parameters,
-                      settings: IdentifySettings, numerics: Numerics = DEFAULT,
-                      recordings: Sequence[ResidualRecording | str] = ()) -> Correction:
+def choose_correction(
+    trace: Trace,
+    inputs: Inputs,
+    params: Parameters,
+    settings: IdentifySettings,
+    numerics: Numerics = DEFAULT,
+    recordings: Sequence[ResidualRecording | str] = (),
+) -> Correction:
     """The nominal-discrepancy correction ``identify.nominal_correction`` asks for.
 
     ``recordings``: the unit's commissioning recordings' residuals (or, for one that
@@ -223,20 +253,29 @@ def choose_correction(trace: Trace, inputs: Inputs, params: Parameters,
     if settings.nominal_correction == "recording":
         reasons = []
         for recording in recordings:
-            chosen = recording if isinstance(recording, str) else recording_correction(trace, recording)
+            chosen = (
+                recording if isinstance(recording, str) else recording_correction(trace, recording)
+            )
             if isinstance(chosen, Correction):
                 return chosen
             reasons.append(chosen)
         why = "; ".join(reasons) or "the parameter set carries no commissioning recording"
-        return reference_correction(inputs, params, numerics,
-                                    f"reference (recording asked, not applicable: {why})")
+        return reference_correction(
+            inputs, params, numerics, f"reference (recording asked, not applicable: {why})"
+        )
     return reference_correction(inputs, params, numerics)
 
 
-def identify_trace(trace: Trace, inputs: Inputs, params: Parameters, settings: IdentifySettings,
-                   numerics: Numerics = DEFAULT, show_progress: bool = True,
-                   recordings: Sequence[ResidualRecording | str] = (),
-                   commissioned: bool | None = None) -> Identification:
+def identify_trace(
+    trace: Trace,
+    inputs: Inputs,
+    params: Parameters,
+    settings: IdentifySettings,
+    numerics: Numerics = DEFAULT,
+    show_progress: bool = True,
+    recordings: Sequence[ResidualRecording | str] = (),
+    commissioned: bool | None = None,
+) -> Identification:
     """Run the GA (and optional refinement) on one trace; nothing is written.
 
     ``commissioned``: whether ``params`` was fitted to the unit that made the trace
@@ -247,8 +286,13 @@ def identify_trace(trace: Trace, inputs: Inputs, params: Parameters, settings: I
     objective = Objective(trace, inputs, params, settings, numerics, correction)
     ga = settings.ga
     population, generations = ga_budget(ga, trace.sample_rate)
-    options = GAOptions(population=population, generations=generations,
-                        crossover=ga.crossover, mutation=ga.mutation, strategy=ga.strategy)
+    options = GAOptions(
+        population=population,
+        generations=generations,
+        crossover=ga.crossover,
+        mutation=ga.mutation,
+        strategy=ga.strategy,
+    )
     healthy = objective.healthy_genes()
     with progress.task("identify", generations, show_progress) as advance:
 
@@ -256,32 +300,62 @@ def identify_trace(trace: Trace, inputs: Inputs, params: Parameters, settings: I
             if gen:
                 advance(1, best=f"{best:.3e}")
 
-        result = minimize(objective, objective.dims, options, seed=ga.seed,
-                          circular=objective.circular, initial=healthy[None],
-                          on_generation=on_generation)
+        result = minimize(
+            objective,
+            objective.dims,
+            options,
+            seed=ga.seed,
+            circular=objective.circular,
+            initial=healthy[None],
+            on_generation=on_generation,
+        )
     best, best_fitness, refined = result.best, result.fitness, False
     if settings.refine:
-        best, best_fitness, refined = polish(objective, result.best, result.fitness,
-                                             settings.polish)
+        best, best_fitness, refined = polish(
+            objective, result.best, result.fitness, settings.polish
+        )
     estimate = objective.values(best)
     if commissioned is None:
         commissioned = params.spec.commissioning is not None
     twin = is_twin(trace, params)
     basis = basis_of(twin, commissioned)
-    confidence = assess(objective, trace, estimate, best_fitness, settings.estimate,
-                        params.spec.health, twin=twin, basis=basis)
-    reasons = off_calibration(trace, confidence.floor.sigma, confidence.floor.ratio,
-                              MISMATCH_RATIO[basis])
+    confidence = assess(
+        objective,
+        trace,
+        estimate,
+        best_fitness,
+        settings.estimate,
+        params.spec.health,
+        twin=twin,
+        basis=basis,
+    )
+    reasons = off_calibration(
+        trace, confidence.floor.sigma, confidence.floor.ratio, MISMATCH_RATIO[basis]
+    )
     if reasons and uninformative(objective, trace, confidence.floor) is None:
-        errors = echo_errors(objective, trace, estimate, settings, confidence.floor.sigma,
-                             numerics)
-        confidence = assess(objective, trace, estimate, best_fitness, settings.estimate,
-                            params.spec.health, twin=twin, basis=basis,
-                            echo={"reasons": reasons, "errors": errors})
+        errors = echo_errors(objective, trace, estimate, settings, confidence.floor.sigma, numerics)
+        confidence = assess(
+            objective,
+            trace,
+            estimate,
+            best_fitness,
+            settings.estimate,
+            params.spec.health,
+            twin=twin,
+            basis=basis,
+            echo={"reasons": reasons, "errors": errors},
+        )
     return Identification(
-        estimate=estimate, ga_estimate=objective.values(result.best),
-        fitness=best_fitness, ga_fitness=result.fitness, evaluations=objective.evaluations,
-        generations=result.generations, stopped_by=result.stopped_by, refined=refined,
-        elapsed_s=time.perf_counter() - start, logbook=list(result.logbook), objective=objective,
+        estimate=estimate,
+        ga_estimate=objective.values(result.best),
+        fitness=best_fitness,
+        ga_fitness=result.fitness,
+        evaluations=objective.evaluations,
+        generations=result.generations,
+        stopped_by=result.stopped_by,
+        refined=refined,
+        elapsed_s=time.perf_counter() - start,
+        logbook=list(result.logbook),
+        objective=objective,
         confidence=confidence,
     )

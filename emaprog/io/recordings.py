@@ -59,14 +59,29 @@ UNITS: dict[str, dict[str, float]] = {
     "torque": {"N m": 1.0},
 }
 #: The kind of quantity of each contract column.
-KIND = {"time": "time", "command": "angle", "position": "angle", "speed": "speed",
-        "current": "current", "current_a": "current", "current_b": "current",
-        "current_c": "current", "torque": "torque", "motor_angle": "angle"}
+KIND = {
+    "time": "time",
+    "command": "angle",
+    "position": "angle",
+    "speed": "speed",
+    "current": "current",
+    "current_a": "current",
+    "current_b": "current",
+    "current_c": "current",
+    "torque": "torque",
+    "motor_angle": "angle",
+}
 PHASE_COLUMNS = ("current_a", "current_b", "current_c")
-FORMATS = {".csv": "csv", ".txt": "csv", ".dat": "csv", ".tsv": "csv", ".mat": "mat",
-           ".parquet": "parquet", ".tdms": "tdms"}
+FORMATS = {
+    ".csv": "csv",
+    ".txt": "csv",
+    ".dat": "csv",
+    ".tsv": "csv",
+    ".mat": "mat",
+    ".parquet": "parquet",
+    ".tdms": "tdms",
+}
 RIG_EXTRA = 'pip install "emaprog[rig]"'
-
 
 
 class _Strict(BaseModel):
@@ -81,9 +96,12 @@ class Column(_Strict):
     scale: 10``), ``sign: -1`` for an axis the rig counts the other way.
     """
 
-    column: str = Field(min_length=1, description="name of the column (CSV header, MATLAB "
-                                                  "variable or struct field, Parquet column, "
-                                                  "TDMS channel or group/channel)")
+    column: str = Field(
+        min_length=1,
+        description="name of the column (CSV header, MATLAB "
+        "variable or struct field, Parquet column, "
+        "TDMS channel or group/channel)",
+    )
     unit: str = Field(description="its unit (UNITS per kind of quantity)")
     scale: float = Field(1.0, allow_inf_nan=False, description="[unit per raw unit] gain")
     offset: float = Field(0.0, allow_inf_nan=False, description="[unit] added after the gain")
@@ -110,10 +128,15 @@ class ColumnMap(_Strict):
     current_c: Column | None = None
     torque: Column | None = None
     motor_angle: Column | None = None
-    variable: str | None = Field(None, min_length=1, description="MATLAB files: the struct "
-                                    "whose fields are the columns (omitted: top-level variables)")
-    csv: CsvOptions = Field(CsvOptions(), description="text files: the dialect, where detection "
-                                                      "is not enough")
+    variable: str | None = Field(
+        None,
+        min_length=1,
+        description="MATLAB files: the struct "
+        "whose fields are the columns (omitted: top-level variables)",
+    )
+    csv: CsvOptions = Field(
+        CsvOptions(), description="text files: the dialect, where detection is not enough"
+    )
 
     @field_validator(*KIND)
     @classmethod
@@ -122,16 +145,20 @@ class ColumnMap(_Strict):
             return value
         allowed = UNITS[KIND[str(info.field_name)]]
         if value.unit not in allowed:
-            raise ValueError(f"unit '{value.unit}' is not allowed for {info.field_name} "
-                             f"(allowed: {', '.join(allowed)})")
+            raise ValueError(
+                f"unit '{value.unit}' is not allowed for {info.field_name} "
+                f"(allowed: {', '.join(allowed)})"
+            )
         return value
 
     @model_validator(mode="after")
     def _some_current(self):
         phases = [getattr(self, p) is not None for p in PHASE_COLUMNS]
         if self.current is None and not all(phases):
-            raise ValueError("map either current (the equivalent current) or all of current_a, "
-                             "current_b, current_c (it is then computed)")
+            raise ValueError(
+                "map either current (the equivalent current) or all of current_a, "
+                "current_b, current_c (it is then computed)"
+            )
         return self
 
     def mapped(self) -> dict[str, Column]:
@@ -159,12 +186,15 @@ def _read_tdms(path: Path) -> dict[str, np.ndarray]:
     try:
         from nptdms import TdmsFile
     except ImportError:
-        raise InputError(path, f"is an NI TDMS file, which needs the npTDMS package ({RIG_EXTRA}"
-                         ")") from None
+        raise InputError(
+            path, f"is an NI TDMS file, which needs the npTDMS package ({RIG_EXTRA})"
+        ) from None
     try:
         tdms = TdmsFile.read(path)
     except Exception as exc:  # noqa: BLE001 - npTDMS raises many kinds on a bad file
-        raise InputError(path, f"is not a readable TDMS file ({str(exc).splitlines()[0]})") from None
+        raise InputError(
+            path, f"is not a readable TDMS file ({str(exc).splitlines()[0]})"
+        ) from None
     out: dict[str, Any] = {}
     names: dict[str, int] = {}
     for group in tdms.groups():
@@ -188,7 +218,9 @@ def _read_parquet(path: Path) -> dict[str, np.ndarray]:
     try:
         table = pq.read_table(path)
     except (pa.ArrowInvalid, OSError) as exc:
-        raise InputError(path, f"is not a readable Parquet recording ({str(exc).splitlines()[0]})") from None
+        raise InputError(
+            path, f"is not a readable Parquet recording ({str(exc).splitlines()[0]})"
+        ) from None
     return {name: table.column(name).to_numpy(zero_copy_only=False) for name in table.column_names}
 
 
@@ -200,13 +232,16 @@ def _read_mat(path: Path, variable: str | None) -> dict[str, Any]:
     except NotImplementedError:  # MATLAB v7.3 files are HDF5
         data = _read_mat_v73(path, variable)
     except (ValueError, TypeError, OSError) as exc:
-        raise InputError(path, f"is not a readable MATLAB file ({str(exc).splitlines()[0]})") from None
+        raise InputError(
+            path, f"is not a readable MATLAB file ({str(exc).splitlines()[0]})"
+        ) from None
     data = {k: v for k, v in data.items() if not k.startswith("__")}
     if variable is None:
         return data
     if variable not in data:
-        raise InputError(path, f"has no variable '{variable}' (it has: {', '.join(sorted(data))})",
-                         "variable")
+        raise InputError(
+            path, f"has no variable '{variable}' (it has: {', '.join(sorted(data))})", "variable"
+        )
     struct = data[variable]
     if not isinstance(struct, dict):
         raise InputError(path, f"variable '{variable}' is not a struct of columns", "variable")
@@ -217,12 +252,18 @@ def _read_mat_v73(path: Path, variable: str | None) -> dict[str, Any]:
     try:
         import h5py
     except ImportError:
-        raise InputError(path, "is a MATLAB v7.3 (HDF5) file, which needs the h5py package "
-                         f"({RIG_EXTRA}); or save it from MATLAB with save(..., '-v7')") from None
+        raise InputError(
+            path,
+            "is a MATLAB v7.3 (HDF5) file, which needs the h5py package "
+            f"({RIG_EXTRA}); or save it from MATLAB with save(..., '-v7')",
+        ) from None
     with h5py.File(path, "r") as handle:
         group = handle[variable] if variable is not None and variable in handle else handle
-        return {name: np.asarray(item).squeeze() for name, item in group.items()
-                if isinstance(item, h5py.Dataset)}
+        return {
+            name: np.asarray(item).squeeze()
+            for name, item in group.items()
+            if isinstance(item, h5py.Dataset)
+        }
 
 
 def _raw_columns(path: Path, columns: ColumnMap) -> tuple[str, dict[str, Any], dict]:
@@ -231,8 +272,10 @@ def _raw_columns(path: Path, columns: ColumnMap) -> tuple[str, dict[str, Any], d
         raise InputError(path, "recording not found")
     kind = FORMATS.get(path.suffix.lower())
     if kind is None:
-        raise InputError(path, f"unknown recording format '{path.suffix}' (allowed: "
-                         f"{', '.join(sorted(FORMATS))})")
+        raise InputError(
+            path,
+            f"unknown recording format '{path.suffix}' (allowed: {', '.join(sorted(FORMATS))})",
+        )
     if kind == "csv":
         raw, layout = _read_csv(path, columns)
         return kind, raw, layout
@@ -254,31 +297,60 @@ def _column(raw: dict[str, Any], key: str, spec: Column, path: Path, time: np.nd
     """One mapped column in SI units, checked: present, numeric, one value per row, no NaN."""
     if spec.column not in raw:
         available = sorted(raw)
-        raise InputError(path, f"has no column '{spec.column}' (mapped to {key}{_suggest(spec.column, available)}; "
-                         f"it has: {', '.join(available[:20])})", f"{key}.column")
+        raise InputError(
+            path,
+            f"has no column '{spec.column}' (mapped to {key}{_suggest(spec.column, available)}; "
+            f"it has: {', '.join(available[:20])})",
+            f"{key}.column",
+        )
     values = np.asarray(raw[spec.column])
     if values.ndim != 1 or values.dtype.kind not in "fiub":
-        raise InputError(path, f"column '{spec.column}' (mapped to {key}) is not one numeric "
-                         "value per row", f"{key}.column")
+        raise InputError(
+            path,
+            f"column '{spec.column}' (mapped to {key}) is not one numeric value per row",
+            f"{key}.column",
+        )
     values = values.astype(np.float64)
     if time is not None and values.size != time.size:
-        raise InputError(path, f"column '{spec.column}' has {values.size} rows, time has "
-                         f"{time.size}", f"{key}.column")
+        raise InputError(
+            path,
+            f"column '{spec.column}' has {values.size} rows, time has {time.size}",
+            f"{key}.column",
+        )
     bad = np.flatnonzero(~np.isfinite(values))
     if bad.size:
         at = f" (time {time[bad[0]]:.9g} s)" if time is not None else ""
-        raise InputError(path, f"column '{spec.column}' (mapped to {key}) has {bad.size} missing, "
-                         f"NaN or infinite value(s), the first at row {bad[0]}{at}; a recording "
-                         "must be complete: cut it to a stretch without them", f"{key}.column")
+        raise InputError(
+            path,
+            f"column '{spec.column}' (mapped to {key}) has {bad.size} missing, "
+            f"NaN or infinite value(s), the first at row {bad[0]}{at}; a recording "
+            "must be complete: cut it to a stretch without them",
+            f"{key}.column",
+        )
     values = spec.sign * (spec.scale * values + spec.offset)
     return values * UNITS[KIND[key]][spec.unit]
 
 
 #: Spellings of units in loggers' unit rows, folded onto the column map's names.
-UNIT_SPELLINGS = {"sec": "s", "msec": "ms", "degree": "deg", "degrees": "deg", "°": "deg",
-                  "rad/sec": "rad/s", "1/min": "rpm", "r/min": "rpm", "min-1": "rpm",
-                  "°/s": "deg/s", "amp": "A", "amps": "A", "ma": "mA", "nm": "N m", "n m": "N m",
-                  "n.m": "N m", "n*m": "N m"}
+UNIT_SPELLINGS = {
+    "sec": "s",
+    "msec": "ms",
+    "degree": "deg",
+    "degrees": "deg",
+    "°": "deg",
+    "rad/sec": "rad/s",
+    "1/min": "rpm",
+    "r/min": "rpm",
+    "min-1": "rpm",
+    "°/s": "deg/s",
+    "amp": "A",
+    "amps": "A",
+    "ma": "mA",
+    "nm": "N m",
+    "n m": "N m",
+    "n.m": "N m",
+    "n*m": "N m",
+}
 
 
 def check_unit_row(units_row: dict[str, str], mapped: dict[str, Column], path: Path) -> None:
@@ -289,13 +361,22 @@ def check_unit_row(units_row: dict[str, str], mapped: dict[str, Column], path: P
         allowed = UNITS[KIND[key]]
         match = {u.lower(): u for u in allowed}.get(written.lower()) if written else None
         if match is not None and match != spec.unit and spec.scale == 1.0:
-            raise InputError(path, f"the file's units row says '{units_row[spec.column]}' for "
-                             f"column '{spec.column}', the column map says '{spec.unit}' (mapped "
-                             f"to {key}); correct the map's unit", f"{key}.unit")
+            raise InputError(
+                path,
+                f"the file's units row says '{units_row[spec.column]}' for "
+                f"column '{spec.column}', the column map says '{spec.unit}' (mapped "
+                f"to {key}); correct the map's unit",
+                f"{key}.unit",
+            )
 
 
-def current_demand(time: np.ndarray, command: np.ndarray, position: np.ndarray,
-                   speed: np.ndarray, params: Parameters) -> np.ndarray:
+def current_demand(
+    time: np.ndarray,
+    command: np.ndarray,
+    position: np.ndarray,
+    speed: np.ndarray,
+    params: Parameters,
+) -> np.ndarray:
     """The controller's current demand I_ref [A] replayed on recorded signals, at their instants.
 
     The digital loops run at their own rate on the recorded command, position and
@@ -306,8 +387,13 @@ def current_demand(time: np.ndarray, command: np.ndarray, position: np.ndarray,
     rate = params.spec.controller.rate
     grid = np.arange(int(math.ceil(time[-1] * rate - 1e-9)) + 1, dtype=np.float64) / rate
     demand = np.empty(grid.size)
-    replay_controller(np.interp(grid, time, command), np.interp(grid, time, position),
-                      np.interp(grid, time, speed), params.controller, demand)
+    replay_controller(
+        np.interp(grid, time, command),
+        np.interp(grid, time, position),
+        np.interp(grid, time, speed),
+        params.controller,
+        demand,
+    )
     # the demand set at k T holds over the period that follows (ZOH)
     return demand[np.clip(np.floor(time * rate + 1e-9).astype(np.int64), 0, grid.size - 1)]
 
@@ -347,11 +433,15 @@ def check_at_rest(trace: Trace, params: Parameters, path) -> None:
     limit = AT_REST_SHARE * params.spec.controller.speed_limit
     moving = abs(float(np.mean(head)))
     if moving > limit:
-        raise InputError(path, f"the recording starts in motion (motor speed {moving:.3g} rad/s "
-                         f"over its first millisecond, above {limit:.3g} rad/s): the models start "
-                         "at rest, so the first sample must be before the command starts; "
-                         "trigger the logger before the test command (a pre-roll at rest is "
-                         "fine) or cut the recording at a moment of rest", "speed")
+        raise InputError(
+            path,
+            f"the recording starts in motion (motor speed {moving:.3g} rad/s "
+            f"over its first millisecond, above {limit:.3g} rad/s): the models start "
+            "at rest, so the first sample must be before the command starts; "
+            "trigger the logger before the test command (a pre-roll at rest is "
+            "fine) or cut the recording at a moment of rest",
+            "speed",
+        )
 
 
 #: [-] share of the conducting samples on which a channel permutation and rotor angle must
@@ -370,8 +460,9 @@ ANGLE_STEP_DEG = 0.5
 DISTINCT_DEG = 60.0
 
 
-def _identity_scores(theta_rel: np.ndarray, currents: np.ndarray, sign: np.ndarray
-                     ) -> tuple[dict[tuple[int, ...], np.ndarray], int]:
+def _identity_scores(
+    theta_rel: np.ndarray, currents: np.ndarray, sign: np.ndarray
+) -> tuple[dict[tuple[int, ...], np.ndarray], int]:
     """Agreement of every channel permutation at every rotor angle at the first sample:
     ``{perm: (720,) share of the conducting samples}`` (perm[model winding] = channel)."""
     from itertools import permutations
@@ -426,9 +517,14 @@ def _circular_deg(a: float, b: float) -> float:
     return abs((a - b + 180.0) % 360.0 - 180.0)
 
 
-def phase_identity(trace_columns: dict[str, np.ndarray], params: Parameters,
-                   channels: dict[str, str], torque_sign: np.ndarray,
-                   expected_deg: float | None = None, speed_source: str = "recorded") -> dict:
+def phase_identity(
+    trace_columns: dict[str, np.ndarray],
+    params: Parameters,
+    channels: dict[str, str],
+    torque_sign: np.ndarray,
+    expected_deg: float | None = None,
+    speed_source: str = "recorded",
+) -> dict:
     """Which recorded channel carries which of the model's windings, and the rotor's
     electrical angle at the first sample.
 
@@ -475,16 +571,29 @@ def phase_identity(trace_columns: dict[str, np.ndarray], params: Parameters,
     trusted = top >= PHASE_AGREEMENT and top - runner >= PHASE_MARGIN
     keys = {winding: PHASE_COLUMNS[chosen[j]] for j, winding in enumerate("abc")}
     found = (candidates[chosen] + 180.0) % 360.0 - 180.0
-    source = ("motor_angle" if "motor_angle" in trace_columns else
-              "integrated speed" if speed_source == "recorded" else "position")
+    source = (
+        "motor_angle"
+        if "motor_angle" in trace_columns
+        else "integrated speed"
+        if speed_source == "recorded"
+        else "position"
+    )
     tolerance = twist_tolerance_deg(params) if source == "position" else 0.0
     angle = 0.0 if abs(found) <= tolerance else found
-    identity = {"windings": keys, "channels": {w: channels[k] for w, k in keys.items()},
-                "agreement": top, "runner_up": runner, "trusted": bool(trusted),
-                "electrical_angle_deg": round(float(angle), 2), "angle": source}
+    identity = {
+        "windings": keys,
+        "channels": {w: channels[k] for w, k in keys.items()},
+        "agreement": top,
+        "runner_up": runner,
+        "trusted": bool(trusted),
+        "electrical_angle_deg": round(float(angle), 2),
+        "angle": source,
+    }
     if angle != found:
-        identity["note"] = (f"rotor angle {found:.1f} deg electrical from the position, within "
-                            f"the {tolerance:.1f} deg the transmission's twist leaves it: taken as 0")
+        identity["note"] = (
+            f"rotor angle {found:.1f} deg electrical from the position, within "
+            f"the {tolerance:.1f} deg the transmission's twist leaves it: taken as 0"
+        )
     return identity
 
 
@@ -498,12 +607,17 @@ def twist_tolerance_deg(params: Parameters) -> float:
     (9.6 deg on the shipped set). A recording whose speed is derived from the position
     locates the rotor only to within it (measured on the example unit: 4-8 deg at 20-40 N m)."""
     m = params.spec.mechanical
-    return math.degrees(params.spec.electrical.pole_pairs * m.gear_ratio * RIG_HINGE_MOMENT
-                        / m.transmission_stiffness)
+    return math.degrees(
+        params.spec.electrical.pole_pairs
+        * m.gear_ratio
+        * RIG_HINGE_MOMENT
+        / m.transmission_stiffness
+    )
 
 
-def sensor_offset_deg(identity: dict, trace_columns: dict[str, np.ndarray],
-                      params: Parameters) -> tuple[float, str]:
+def sensor_offset_deg(
+    identity: dict, trace_columns: dict[str, np.ndarray], params: Parameters
+) -> tuple[float, str]:
     """The rotor's electrical angle where the angle sensor reads 0 [deg], from a recording's
     identity, and which sensor that is (``motor_angle``, else ``position`` times the gear
     ratio): a property of the unit, stored at commissioning."""
@@ -530,25 +644,38 @@ def expected_angle_deg(trace_columns: dict[str, np.ndarray], params: Parameters)
             if source == "motor_angle" and "motor_angle" not in trace_columns:
                 continue
             pp = params.spec.electrical.pole_pairs
-            reading = (float(trace_columns["motor_angle"][0]) if source == "motor_angle" else
-                       params.spec.mechanical.gear_ratio * float(trace_columns["position"][0]))
+            reading = (
+                float(trace_columns["motor_angle"][0])
+                if source == "motor_angle"
+                else params.spec.mechanical.gear_ratio * float(trace_columns["position"][0])
+            )
             return float(known["sensor_offset_deg"]) + math.degrees(pp * reading)
     return None
 
 
 #: Ratios of a recorded channel to what the other channels say it should be, and the
 #: mapping mistake each one points to (:func:`check_plausible`).
-_SUSPECTS = ((60.0 / (2.0 * math.pi), "rpm mapped as rad/s?"), (2.0 * math.pi / 60.0, "rad/s mapped as rpm?"),
-             (180.0 / math.pi, "deg/s mapped as rad/s?"), (math.pi / 180.0, "rad/s mapped as deg/s?"),
-             (6.0, "rpm mapped as deg/s?"), (1.0 / 6.0, "deg/s mapped as rpm?"),
-             (-1.0, "the sign is inverted (sign: -1)?"))
+_SUSPECTS = (
+    (60.0 / (2.0 * math.pi), "rpm mapped as rad/s?"),
+    (2.0 * math.pi / 60.0, "rad/s mapped as rpm?"),
+    (180.0 / math.pi, "deg/s mapped as rad/s?"),
+    (math.pi / 180.0, "rad/s mapped as deg/s?"),
+    (6.0, "rpm mapped as deg/s?"),
+    (1.0 / 6.0, "deg/s mapped as rpm?"),
+    (-1.0, "the sign is inverted (sign: -1)?"),
+)
 #: [-] how far a channel may be from what the others say before the map is suspected.
 PLAUSIBLE_RATIO = 0.3
 
 
 def _suspect(ratio: float) -> str:
-    best = min(_SUSPECTS, key=lambda s: abs(math.log(abs(ratio) / abs(s[0])))
-               + (0.0 if math.copysign(1.0, ratio) == math.copysign(1.0, s[0]) else 10.0))
+    best = min(
+        _SUSPECTS,
+        key=lambda s: (
+            abs(math.log(abs(ratio) / abs(s[0])))
+            + (0.0 if math.copysign(1.0, ratio) == math.copysign(1.0, s[0]) else 10.0)
+        ),
+    )
     close = abs(ratio / best[0] - 1.0) < PLAUSIBLE_RATIO
     return best[1] if close else "a unit, scale or sign in the map is wrong?"
 
@@ -572,8 +699,11 @@ def check_plausible(trace: Trace, params: Parameters, path) -> None:
         return
     out = trace.columns
     speed_source = speed_source_of(trace)
-    mapped = {k: Column.model_validate(v) for k, v in meta["column_map"].items()
-              if k in KIND and v is not None}
+    mapped = {
+        k: Column.model_validate(v)
+        for k, v in meta["column_map"].items()
+        if k in KIND and v is not None
+    }
     limit = params.spec.controller.speed_limit
     gear = params.spec.mechanical.gear_ratio
     time = out["time"]
@@ -583,26 +713,39 @@ def check_plausible(trace: Trace, params: Parameters, path) -> None:
         ratio = float(np.dot(q, c) / max(np.dot(c, c), 1e-300))
         if ratio < 0 or not 0.1 < ratio < 10.0:
             key = "position"
-            raise InputError(path, f"position is {ratio:.3g} x the command it follows: "
-                             f"{'the sign of position or command is inverted (sign: -1)?' if ratio < 0 else 'a unit or scale of position or command is wrong (deg, rad, mrad)?'}"
-                             f" (column '{mapped[key].column}')", key)
+            raise InputError(
+                path,
+                f"position is {ratio:.3g} x the command it follows: "
+                f"{'the sign of position or command is inverted (sign: -1)?' if ratio < 0 else 'a unit or scale of position or command is wrong (deg, rad, mrad)?'}"
+                f" (column '{mapped[key].column}')",
+                key,
+            )
     if speed_source == "recorded" and time.size > 20:
         angle = out["motor_angle"] if "motor_angle" in out else gear * out["position"]
         derived = derived_speed(time, angle, "motor_angle" if "motor_angle" in out else "position")
-        if float(np.sqrt(np.mean(derived ** 2))) > 0.02 * limit:
+        if float(np.sqrt(np.mean(derived**2))) > 0.02 * limit:
             ratio = float(np.dot(out["speed"], derived) / np.dot(derived, derived))
             if abs(ratio - 1.0) > PLAUSIBLE_RATIO:
-                source = "motor_angle" if "motor_angle" in out else f"position x gear ratio {gear:g}"
-                raise InputError(path, f"speed is {ratio:.3g} x d({source})/dt: "
-                                 f"{_suspect(ratio)} (column '{mapped['speed'].column}')",
-                                 "speed")
+                source = (
+                    "motor_angle" if "motor_angle" in out else f"position x gear ratio {gear:g}"
+                )
+                raise InputError(
+                    path,
+                    f"speed is {ratio:.3g} x d({source})/dt: "
+                    f"{_suspect(ratio)} (column '{mapped['speed'].column}')",
+                    "speed",
+                )
     current_limit = params.spec.electrical.current_limit
     keys = [k for k in ("current", *PHASE_COLUMNS) if k in mapped and k in out]
     peak = max(float(np.max(np.abs(out[k]))) for k in keys)
     if peak > 3.0 * current_limit:
-        raise InputError(path, f"the current reaches {peak:.4g} A, over 3 x the drive's "
-                         f"{current_limit:g} A limit: mA mapped as A? (column "
-                         f"'{mapped[keys[0]].column}')", f"{keys[0]}.unit")
+        raise InputError(
+            path,
+            f"the current reaches {peak:.4g} A, over 3 x the drive's "
+            f"{current_limit:g} A limit: mA mapped as A? (column "
+            f"'{mapped[keys[0]].column}')",
+            f"{keys[0]}.unit",
+        )
 
 
 def _angle(out: dict[str, np.ndarray]) -> np.ndarray:
@@ -618,9 +761,13 @@ def _angle(out: dict[str, np.ndarray]) -> np.ndarray:
 CommandOf = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, str]]
 
 
-def read_recording(path: str | Path, columns: ColumnMap, params: Parameters,
-                   map_file: str | Path | None = None, command_of: CommandOf | None = None
-                   ) -> Trace:
+def read_recording(
+    path: str | Path,
+    columns: ColumnMap,
+    params: Parameters,
+    map_file: str | Path | None = None,
+    command_of: CommandOf | None = None,
+) -> Trace:
     """A rig recording as a contract trace (module docstring); any problem is an InputError.
 
     Without a mapped ``command``, ``command_of`` supplies it (a scenario's test command
@@ -631,11 +778,17 @@ def read_recording(path: str | Path, columns: ColumnMap, params: Parameters,
     if layout.get("units_row"):
         check_unit_row(layout["units_row"], mapped, path)
     if "command" not in mapped and command_of is None:
-        raise InputError(map_file or path, "maps no command and no test command was given: map "
-                         "the logger's command channel, or give the test command as a scenario "
-                         "with --scenario (it is then placed in time by the response)", "command")
+        raise InputError(
+            map_file or path,
+            "maps no command and no test command was given: map "
+            "the logger's command channel, or give the test command as a scenario "
+            "with --scenario (it is then placed in time by the response)",
+            "command",
+        )
     time = _column(raw, "time", mapped["time"], path, None)
-    out = {key: _column(raw, key, spec, path, time) for key, spec in mapped.items() if key != "time"}
+    out = {
+        key: _column(raw, key, spec, path, time) for key, spec in mapped.items() if key != "time"
+    }
     t0 = float(time[0])
     out["time"] = time - t0
     command_note = "recorded"
@@ -649,11 +802,18 @@ def read_recording(path: str | Path, columns: ColumnMap, params: Parameters,
         gear = params.spec.mechanical.gear_ratio
         angle = out["motor_angle"] if source == "motor_angle" else gear * out["position"]
         out["speed"] = derived_speed(out["time"], angle, source)
-        speed = {"source": source,
-                 "note": (("derived from motor_angle" if source == "motor_angle" else
-                           f"derived from position x gear ratio {gear:g}")
-                          + f" (Savitzky-Golay derivative, order {SPEED_ORDER}, "
-                          f"{SPEED_WINDOW_SECONDS[source] * 1e3:g} ms window)")}
+        speed = {
+            "source": source,
+            "note": (
+                (
+                    "derived from motor_angle"
+                    if source == "motor_angle"
+                    else f"derived from position x gear ratio {gear:g}"
+                )
+                + f" (Savitzky-Golay derivative, order {SPEED_ORDER}, "
+                f"{SPEED_WINDOW_SECONDS[source] * 1e3:g} ms window)"
+            ),
+        }
     phases = all(k in out for k in PHASE_COLUMNS)
     if "current" in out:
         how, sign = "recorded", np.sign(out["current"])
@@ -666,24 +826,38 @@ def read_recording(path: str | Path, columns: ColumnMap, params: Parameters,
         # follows the same demand, then fitted the example unit's pre-roll recordings
         # worse (k_e x0.939 against x0.980, true 0.98)
         how = "phase currents, signed like the replayed controller's current demand"
-        sign = np.sign(current_demand(out["time"], out["command"], out["position"], out["speed"],
-                                      params))
+        sign = np.sign(
+            current_demand(out["time"], out["command"], out["position"], out["speed"], params)
+        )
     identity = None
     if phases:
-        identity = phase_identity(out, params, {k: mapped[k].column for k in PHASE_COLUMNS},
-                                  sign, expected_angle_deg(out, params), speed["source"])
-        identity["sensor_offset_deg"], identity["offset_from"] = sensor_offset_deg(identity, out,
-                                                                                   params)
+        identity = phase_identity(
+            out,
+            params,
+            {k: mapped[k].column for k in PHASE_COLUMNS},
+            sign,
+            expected_angle_deg(out, params),
+            speed["source"],
+        )
+        identity["sensor_offset_deg"], identity["offset_from"] = sensor_offset_deg(
+            identity, out, params
+        )
     if "current" not in out:
-        out["current"] = 0.5 * (np.abs(out["current_a"]) + np.abs(out["current_b"])
-                                + np.abs(out["current_c"])) * sign
+        out["current"] = (
+            0.5
+            * (np.abs(out["current_a"]) + np.abs(out["current_b"]) + np.abs(out["current_c"]))
+            * sign
+        )
     checked = check_columns({k: out[k] for k in COLUMNS if k in out}, path)
     meta = {
         "emaprog_version": __version__,
         "model": "recording",
-        "source": {"file": str(path.resolve()), "format": kind,
-                   "sha256": hashlib.sha256(path.read_bytes()).hexdigest(),
-                   **({"layout": layout["dialect"]} if "dialect" in layout else {})},
+        "source": {
+            "file": str(path.resolve()),
+            "format": kind,
+            "sha256": hashlib.sha256(path.read_bytes()).hexdigest(),
+            **({"layout": layout["dialect"]} if "dialect" in layout else {}),
+        },
         "column_map": columns.model_dump(mode="json"),
         "column_map_file": str(Path(map_file).resolve()) if map_file is not None else None,
         "time_offset": t0,

@@ -62,8 +62,14 @@ def write_trace(path: str | Path, trace: Trace) -> Path:
     fields, arrays = [], []
     for name in trace.columns:
         unit, description = COLUMNS[name]
-        fields.append(pa.field(name, pa.float64(), nullable=False,
-                               metadata={b"unit": unit.encode(), b"description": description.encode()}))
+        fields.append(
+            pa.field(
+                name,
+                pa.float64(),
+                nullable=False,
+                metadata={b"unit": unit.encode(), b"description": description.encode()},
+            )
+        )
         arrays.append(pa.array(np.asarray(trace.columns[name], dtype=np.float64)))
     meta = {METADATA_KEY: json.dumps(trace.metadata).encode()} if trace.metadata else None
     table = pa.Table.from_arrays(arrays, schema=pa.schema(fields, metadata=meta))
@@ -79,8 +85,11 @@ def write_trace(path: str | Path, trace: Trace) -> Path:
 def _require_columns(names, source: str | Path) -> None:
     missing = [c for c in REQUIRED if c not in names]
     if missing:
-        raise InputError(source, f"missing column(s) {', '.join(missing)}; a trace needs "
-                         f"{', '.join(REQUIRED)} (docs/reference.md, Traces)")
+        raise InputError(
+            source,
+            f"missing column(s) {', '.join(missing)}; a trace needs "
+            f"{', '.join(REQUIRED)} (docs/reference.md, Traces)",
+        )
 
 
 def check_columns(raw: dict[str, Any], source: str | Path) -> dict[str, np.ndarray]:
@@ -130,16 +139,22 @@ def check_time(t: np.ndarray, source: str | Path, key: str = "time") -> None:
     k = int(bad[0])
     where = f"at row {k + 1} (time {t[k + 1]:.9g} s)"
     if dt[k] == 0:
-        problem = (f"duplicated sample {where}: the same time as the row before; remove "
-                   "repeated rows from the recording")
+        problem = (
+            f"duplicated sample {where}: the same time as the row before; remove "
+            "repeated rows from the recording"
+        )
     elif dt[k] < 0:
         problem = f"time must increase strictly from sample to sample; it goes back {where}"
     elif dt[k] > 1.5 * period:
-        problem = (f"gap of {dt[k]:.6g} s {where} in a recording sampled every {period:.6g} s; "
-                   "identify a continuous stretch (cut the recording at the gap)")
+        problem = (
+            f"gap of {dt[k]:.6g} s {where} in a recording sampled every {period:.6g} s; "
+            "identify a continuous stretch (cut the recording at the gap)"
+        )
     else:
-        problem = (f"samples must be evenly spaced (within {JITTER:.0%} of the median period "
-                   f"{period:.6g} s); the spacing is {dt[k]:.6g} s {where}")
+        problem = (
+            f"samples must be evenly spaced (within {JITTER:.0%} of the median period "
+            f"{period:.6g} s); the spacing is {dt[k]:.6g} s {where}"
+        )
     raise InputError(source, problem, key)
 
 
@@ -157,16 +172,22 @@ def read_trace(path: str | Path) -> Trace:
     try:
         table = pq.read_table(path)
     except (pa.ArrowInvalid, OSError) as exc:
-        hint = ("" if path.suffix.lower() == ".parquet" else
-                "; a data logger's file (CSV, MATLAB, TDMS) is read through a column map: "
-                "give --columns MAP.yaml (docs/reference.md, Rig recordings)")
-        raise InputError(path, f"is not a readable Parquet trace ({str(exc).splitlines()[0]})"
-                         + hint) from None
+        hint = (
+            ""
+            if path.suffix.lower() == ".parquet"
+            else "; a data logger's file (CSV, MATLAB, TDMS) is read through a column map: "
+            "give --columns MAP.yaml (docs/reference.md, Rig recordings)"
+        )
+        raise InputError(
+            path, f"is not a readable Parquet trace ({str(exc).splitlines()[0]})" + hint
+        ) from None
     _require_columns(table.column_names, path)
     raw_columns = {}
     for name in table.column_names:
         col = table.column(name)
-        if name in COLUMNS and not (pa.types.is_floating(col.type) or pa.types.is_integer(col.type)):
+        if name in COLUMNS and not (
+            pa.types.is_floating(col.type) or pa.types.is_integer(col.type)
+        ):
             raise InputError(path, f"column has type {col.type}, expected float64", name)
         if name in COLUMNS and col.null_count:
             raise InputError(path, f"column has {col.null_count} missing values", name)
@@ -188,7 +209,9 @@ def frame_of(trace: Trace) -> pd.DataFrame:
     """A trace as a DataFrame: ``attrs["units"]`` per column, ``attrs["emaprog"]`` provenance."""
     import pandas as pd
 
-    frame = pd.DataFrame({name: np.asarray(values, float) for name, values in trace.columns.items()})
+    frame = pd.DataFrame(
+        {name: np.asarray(values, float) for name, values in trace.columns.items()}
+    )
     frame.attrs["units"] = {name: COLUMNS[name][0] for name in trace.columns}
     frame.attrs["emaprog"] = trace.metadata
     return frame
@@ -221,8 +244,9 @@ def write_json(path: str | Path, data: dict) -> Path:
     return path
 
 
-def writable_output(path: str | Path, kind: str, force: bool = False,
-                    protected: tuple[str, ...] | bool = ()) -> Path:
+def writable_output(
+    path: str | Path, kind: str, force: bool = False, protected: tuple[str, ...] | bool = ()
+) -> Path:
     """Refuse, before any work, an output that cannot be written (exit 2 naming it).
 
     ``kind`` ``file``: not an existing folder; ``folder``: not an existing file. Without
@@ -232,19 +256,27 @@ def writable_output(path: str | Path, kind: str, force: bool = False,
     """
     path = Path(path)
     if kind == "file" and path.is_dir():
-        raise InputError(path, "is an existing folder; give the file to write (e.g. "
-                         f"{path / 'out.parquet'})", "--output")
+        raise InputError(
+            path,
+            f"is an existing folder; give the file to write (e.g. {path / 'out.parquet'})",
+            "--output",
+        )
     if kind == "folder" and path.exists() and not path.is_dir():
-        raise InputError(path, "is an existing file; give a folder to write the results in",
-                         "--output")
+        raise InputError(
+            path, "is an existing file; give a folder to write the results in", "--output"
+        )
     if not force and protected:
         if isinstance(protected, bool):
             existing = [path] if path.is_file() else []
         else:
             existing = [path / name for name in protected if (path / name).exists()]
         if existing:
-            raise InputError(existing[0], "exists already; it is not overwritten without "
-                             "--force (or choose another --output)", "--output")
+            raise InputError(
+                existing[0],
+                "exists already; it is not overwritten without "
+                "--force (or choose another --output)",
+                "--output",
+            )
     parent = path if kind == "folder" else path.parent
     while not parent.exists():
         parent = parent.parent
@@ -255,6 +287,9 @@ def writable_output(path: str | Path, kind: str, force: bool = False,
         os.close(handle)
         os.unlink(probe)
     except OSError as exc:
-        raise InputError(path, f"cannot be written: {parent} is not a writable folder "
-                         f"({exc.strerror})", "--output") from None
+        raise InputError(
+            path,
+            f"cannot be written: {parent} is not a writable folder ({exc.strerror})",
+            "--output",
+        ) from None
     return path

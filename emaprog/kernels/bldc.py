@@ -127,12 +127,18 @@ def star_rates(v, tied, i, e, r, l, vdc):
             num += (v[x] - r[x] * i[x] - e[x]) / l[x]
             den += 1.0 / l[x]
         vn = num / den
-        return ((v[0] - vn - r[0] * i[0] - e[0]) / l[0], (v[1] - vn - r[1] * i[1] - e[1]) / l[1],
-                (v[2] - vn - r[2] * i[2] - e[2]) / l[2], vn)
+        return (
+            (v[0] - vn - r[0] * i[0] - e[0]) / l[0],
+            (v[1] - vn - r[1] * i[1] - e[1]) / l[1],
+            (v[2] - vn - r[2] * i[2] - e[2]) / l[2],
+            vn,
+        )
     if n_tied == 2:
         p = 0 if tied[0] else 1
         q = 2 if tied[2] else 1
-        di = ((v[p] - v[q]) - (r[p] + r[q]) * i[p] + r[q] * (i[p] + i[q]) - (e[p] - e[q])) / (l[p] + l[q])
+        di = ((v[p] - v[q]) - (r[p] + r[q]) * i[p] + r[q] * (i[p] + i[q]) - (e[p] - e[q])) / (
+            l[p] + l[q]
+        )
         vn = v[p] - r[p] * i[p] - l[p] * di - e[p]
         da = di if p == 0 else 0.0
         db = di if p == 1 else (-di if q == 1 else 0.0)

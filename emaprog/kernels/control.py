@@ -44,8 +44,9 @@ def controller_update(command, position, speed, position_int, speed_int, ctrl):
 
 
 @njit(cache=True)
-def sample_and_control(command, theta_s, omega_m, noise_position, noise_speed, position_int,
-                       speed_int, plant):
+def sample_and_control(
+    command, theta_s, omega_m, noise_position, noise_speed, position_int, speed_int, plant
+):
     """One controller period's sampling and control, shared by both models.
 
     The feedback is sampled at the period's start (position transducer offset,
@@ -54,11 +55,13 @@ def sample_and_control(command, theta_s, omega_m, noise_position, noise_speed, p
     position_int, speed_int).
     """
     sens = plant.sensors
-    position = quantize(theta_s + sens.position_offset + noise_position, sens.position_lsb,
-                        sens.position_range)
+    position = quantize(
+        theta_s + sens.position_offset + noise_position, sens.position_lsb, sens.position_range
+    )
     speed = quantize(omega_m + noise_speed, sens.speed_lsb, sens.speed_range)
     current_ref, position_int, speed_int = controller_update(
-        command, position, speed, position_int, speed_int, plant.controller)
+        command, position, speed, position_int, speed_int, plant.controller
+    )
     return position, speed, current_ref, position_int, speed_int
 
 
@@ -73,4 +76,5 @@ def replay_controller(command, position, speed, ctrl, demand):
     speed_int = 0.0
     for k in range(command.size):
         demand[k], position_int, speed_int = controller_update(
-            command[k], position[k], speed[k], position_int, speed_int, ctrl)
+            command[k], position[k], speed[k], position_int, speed_int, ctrl
+        )

@@ -52,9 +52,15 @@ def link_torque(theta_m, omega_m, theta_s, omega_s, backlash, mech):
 def end_stop_torque(theta_s, omega_s, mech):
     """Contact torque of the symmetric end stops on the surface [N m] (push only)."""
     if theta_s > mech.end_stop:
-        return min(-mech.end_stop_stiffness * (theta_s - mech.end_stop) - mech.end_stop_damping * omega_s, 0.0)
+        return min(
+            -mech.end_stop_stiffness * (theta_s - mech.end_stop) - mech.end_stop_damping * omega_s,
+            0.0,
+        )
     if theta_s < -mech.end_stop:
-        return max(-mech.end_stop_stiffness * (theta_s + mech.end_stop) - mech.end_stop_damping * omega_s, 0.0)
+        return max(
+            -mech.end_stop_stiffness * (theta_s + mech.end_stop) - mech.end_stop_damping * omega_s,
+            0.0,
+        )
     return 0.0
 
 
@@ -93,8 +99,19 @@ def borello_velocity(omega, active, static, dynamic, inertia, dt):
 
 
 @njit(cache=True)
-def mechanics_step(theta_m, omega_m, theta_s, omega_s, motor_torque, load_torque,
-                   load_stiffness, friction_scale, backlash, mech, dt):
+def mechanics_step(
+    theta_m,
+    omega_m,
+    theta_s,
+    omega_s,
+    motor_torque,
+    load_torque,
+    load_stiffness,
+    friction_scale,
+    backlash,
+    mech,
+    dt,
+):
     """Advance the 2-DOF transmission by ``dt``.
 
     Parameters
@@ -115,12 +132,21 @@ def mechanics_step(theta_m, omega_m, theta_s, omega_s, motor_torque, load_torque
     link, spring = link_torque(theta_m, omega_m, theta_s, omega_s, backlash, mech)
     active_m = motor_torque - mech.motor_viscous * omega_m - link * (1.0 / mech.gear_ratio)
     new_omega_m, friction = borello_velocity(
-        omega_m, active_m, friction_scale * mech.static_friction,
-        friction_scale * mech.dynamic_friction, mech.motor_inertia, dt,
+        omega_m,
+        active_m,
+        friction_scale * mech.static_friction,
+        friction_scale * mech.dynamic_friction,
+        mech.motor_inertia,
+        dt,
     )
     hinge = load_torque + load_stiffness * theta_s
     stop = end_stop_torque(theta_s, omega_s, mech)
     active_s = link - mech.surface_damping * omega_s - hinge + stop
     new_omega_s = omega_s + active_s * (dt / mech.surface_inertia)
-    return (theta_m + new_omega_m * dt, new_omega_m, theta_s + new_omega_s * dt, new_omega_s,
-            TransmissionTorques(link, spring, friction, hinge, stop))
+    return (
+        theta_m + new_omega_m * dt,
+        new_omega_m,
+        theta_s + new_omega_s * dt,
+        new_omega_s,
+        TransmissionTorques(link, spring, friction, hinge, stop),
+    )

@@ -48,9 +48,18 @@ from .structs import (
     Plant,
 )
 
-(U_MOTOR_INERTIA, U_SURFACE_INERTIA, U_MOTOR_VISCOUS, U_STATIC_FRICTION, U_DYNAMIC_FRICTION,
- U_PHASE_RESISTANCE, U_BACK_EMF_CONSTANT, U_PHASE_INDUCTANCE, U_TRANSMISSION_STIFFNESS,
- U_HINGE_MOMENT) = range(len(UNIT_COLUMNS))
+(
+    U_MOTOR_INERTIA,
+    U_SURFACE_INERTIA,
+    U_MOTOR_VISCOUS,
+    U_STATIC_FRICTION,
+    U_DYNAMIC_FRICTION,
+    U_PHASE_RESISTANCE,
+    U_BACK_EMF_CONSTANT,
+    U_PHASE_INDUCTANCE,
+    U_TRANSMISSION_STIFFNESS,
+    U_HINGE_MOMENT,
+) = range(len(UNIT_COLUMNS))
 
 SHORT_CIRCUIT_MODULATED = 0
 SHORT_CIRCUIT_AVERAGED = 1
@@ -164,8 +173,9 @@ def equivalent_branch_step(current, current_ref, gain, a, drive, back, omega, vd
 
 
 @njit(cache=True)
-def commutation_step(pair, outgoing, current_ref, s6, theta_e, omega, k_phase, r_phase, l_phase,
-                     vdc, dt):
+def commutation_step(
+    pair, outgoing, current_ref, s6, theta_e, omega, k_phase, r_phase, l_phase, vdc, dt
+):
     """One step of a commutation: the pair current and the outgoing phase's freewheeling current.
 
     After a sector change the phase that left the pair (the new sector's idle
@@ -210,9 +220,11 @@ def commutation_step(pair, outgoing, current_ref, s6, theta_e, omega, k_phase, r
         outgoing_new = 0.0  # the diode blocks: the commutation is over
     i_p = pair_new - 0.5 * outgoing_new
     i_q = -pair_new - 0.5 * outgoing_new
-    torque = (k_phase[p] * trapezoid(theta_e + PHASE_OFFSET[p]) * i_p
-              + k_phase[q] * trapezoid(theta_e + PHASE_OFFSET[q]) * i_q
-              + k_phase[o] * shape_o * outgoing_new)
+    torque = (
+        k_phase[p] * trapezoid(theta_e + PHASE_OFFSET[p]) * i_p
+        + k_phase[q] * trapezoid(theta_e + PHASE_OFFSET[q]) * i_q
+        + k_phase[o] * shape_o * outgoing_new
+    )
     return pair_new, outgoing_new, torque, equivalent_current(i_p, i_q, outgoing_new, torque)
 
 
@@ -288,7 +300,8 @@ def simulate_monitor(drive, plant, faults, options, out):
     mean_current = 0.0
     for k in range(n):
         pos_meas, spd_meas, current_ref, position_int, speed_int = sample_and_control(
-            drive.command[k], theta_s, omega_m, 0.0, 0.0, position_int, speed_int, plant)
+            drive.command[k], theta_s, omega_m, 0.0, 0.0, position_int, speed_int, plant
+        )
         out.position[k] = pos_meas
         out.speed[k] = spd_meas
         out.motor_angle[k] = theta_m
@@ -305,8 +318,9 @@ def simulate_monitor(drive, plant, faults, options, out):
                 for x in range(3):
                     k_phase[x] = unit_k * phase_working[x] * ecc
             elif eccentric:
-                gain = pair_eccentricity_coefficients(theta_e, s6, z, offsets, phase_working,
-                                                      unit_k, k_phase)
+                gain = pair_eccentricity_coefficients(
+                    theta_e, s6, z, offsets, phase_working, unit_k, k_phase
+                )
             if s6 != last_sector and options.commutation:
                 # the new idle phase was in the old pair: it keeps its current
                 idle = IDLE_PHASE[s6]
@@ -315,18 +329,45 @@ def simulate_monitor(drive, plant, faults, options, out):
             last_sector = s6
             if outgoing != 0.0:
                 i, outgoing, torque, measured = commutation_step(
-                    i, outgoing, current_ref, s6, theta_e, omega_m, k_phase, r_phase, l_phase,
-                    elec.dc_bus_voltage, dt)
+                    i,
+                    outgoing,
+                    current_ref,
+                    s6,
+                    theta_e,
+                    omega_m,
+                    k_phase,
+                    r_phase,
+                    l_phase,
+                    elec.dc_bus_voltage,
+                    dt,
+                )
             else:
-                i = equivalent_branch_step(i, current_ref, gain, sector_decay[s6],
-                                           sector_drive[s6], sector_back[s6], omega_m,
-                                           elec.dc_bus_voltage)
+                i = equivalent_branch_step(
+                    i,
+                    current_ref,
+                    gain,
+                    sector_decay[s6],
+                    sector_drive[s6],
+                    sector_back[s6],
+                    omega_m,
+                    elec.dc_bus_voltage,
+                )
                 torque = gain * i
                 measured = i
             torque *= max(0.0, 1.0 - options.commutation_loss * abs(omega_m))
             theta_m, omega_m, theta_s, omega_s, _ = mechanics_step(
-                theta_m, omega_m, theta_s, omega_s, torque, load, drive.load_stiffness,
-                faults.friction, faults.backlash, mech, dt)
+                theta_m,
+                omega_m,
+                theta_s,
+                omega_s,
+                torque,
+                load,
+                drive.load_stiffness,
+                faults.friction,
+                faults.backlash,
+                mech,
+                dt,
+            )
             mean_current += measured
         mean_current /= substeps
 
@@ -350,14 +391,29 @@ def moving_average(x, width, out):
 def unit_plant(plant, row):
     """``plant`` with the unit-to-unit values of one :data:`~emaprog.kernels.structs.UNIT_COLUMNS` row."""
     e, m = plant.electrical, plant.mechanical
-    electrical = ElectricalParams(e.dc_bus_voltage, e.pole_pairs, row[U_PHASE_RESISTANCE],
-                                  row[U_PHASE_INDUCTANCE], row[U_BACK_EMF_CONSTANT],
-                                  e.current_limit, e.hysteresis_band)
-    mechanical = MechanicalParams(row[U_MOTOR_INERTIA], row[U_MOTOR_VISCOUS],
-                                  row[U_STATIC_FRICTION], row[U_DYNAMIC_FRICTION], m.gear_ratio,
-                                  row[U_SURFACE_INERTIA], m.surface_damping,
-                                  row[U_TRANSMISSION_STIFFNESS], m.transmission_damping,
-                                  m.end_stop, m.end_stop_stiffness, m.end_stop_damping)
+    electrical = ElectricalParams(
+        e.dc_bus_voltage,
+        e.pole_pairs,
+        row[U_PHASE_RESISTANCE],
+        row[U_PHASE_INDUCTANCE],
+        row[U_BACK_EMF_CONSTANT],
+        e.current_limit,
+        e.hysteresis_band,
+    )
+    mechanical = MechanicalParams(
+        row[U_MOTOR_INERTIA],
+        row[U_MOTOR_VISCOUS],
+        row[U_STATIC_FRICTION],
+        row[U_DYNAMIC_FRICTION],
+        m.gear_ratio,
+        row[U_SURFACE_INERTIA],
+        m.surface_damping,
+        row[U_TRANSMISSION_STIFFNESS],
+        m.transmission_damping,
+        m.end_stop,
+        m.end_stop_stiffness,
+        m.end_stop_damping,
+    )
     return Plant(electrical, mechanical, plant.controller, plant.sensors)
 
 
@@ -396,18 +452,46 @@ def evaluate_population(faults, units, drive, plant, options, target, fitness):
         weighted sample by sample with ``target.sample_weight``.
     """
     # numba's parallel loop takes flat tuples only: hand it the plant's parts
-    _evaluate_parallel(faults, units, drive, plant.electrical, plant.mechanical, plant.controller,
-                       plant.sensors, options, target, _target_norms(target), fitness)
+    _evaluate_parallel(
+        faults,
+        units,
+        drive,
+        plant.electrical,
+        plant.mechanical,
+        plant.controller,
+        plant.sensors,
+        options,
+        target,
+        _target_norms(target),
+        fitness,
+    )
 
 
 @njit(cache=True, parallel=True)
-def _evaluate_parallel(faults, units, drive, electrical, mechanical, controller, sensors, options,
-                       target, norms, fitness):
+def _evaluate_parallel(
+    faults,
+    units,
+    drive,
+    electrical,
+    mechanical,
+    controller,
+    sensors,
+    options,
+    target,
+    norms,
+    fitness,
+):
     shared = units.shape[0] == 1
     for j in prange(faults.shape[0]):
         fitness[j] = _candidate_fitness(
-            faults[j], units[0] if shared else units[j], drive,
-            Plant(electrical, mechanical, controller, sensors), options, target, norms)
+            faults[j],
+            units[0] if shared else units[j],
+            drive,
+            Plant(electrical, mechanical, controller, sensors),
+            options,
+            target,
+            norms,
+        )
 
 
 @njit(cache=True)
@@ -415,8 +499,13 @@ def _simulate_candidate(row, unit, drive, plant, options):
     """The Monitor outputs of one candidate row under its unit row."""
     n = drive.command.size
     candidate = MonitorFaults(row[0], row[1], row[2], row[3], row[4], row[5], row[6])
-    own_drive = Drive(drive.command, drive.load_torque, drive.load_stiffness, unit[U_HINGE_MOMENT],
-                      drive.electrical_angle)
+    own_drive = Drive(
+        drive.command,
+        drive.load_torque,
+        drive.load_stiffness,
+        unit[U_HINGE_MOMENT],
+        drive.electrical_angle,
+    )
     out = MonitorOutputs(np.empty(n), np.empty(n), np.empty(n), np.empty(n))
     simulate_monitor(own_drive, unit_plant(plant, unit), candidate, options, out)
     return out
@@ -455,19 +544,45 @@ def evaluate_residuals(faults, units, drive, plant, options, target, residuals):
     sum over (s, k) is the candidate's fitness of :func:`evaluate_population` (a
     zero-weight signal's rows are 0). For least-squares polishing and Jacobians.
     """
-    _residuals_parallel(faults, units, drive, plant.electrical, plant.mechanical,
-                        plant.controller, plant.sensors, options, target, _target_norms(target),
-                        residuals)
+    _residuals_parallel(
+        faults,
+        units,
+        drive,
+        plant.electrical,
+        plant.mechanical,
+        plant.controller,
+        plant.sensors,
+        options,
+        target,
+        _target_norms(target),
+        residuals,
+    )
 
 
 @njit(cache=True, parallel=True)
-def _residuals_parallel(faults, units, drive, electrical, mechanical, controller, sensors, options,
-                        target, norms, residuals):
+def _residuals_parallel(
+    faults,
+    units,
+    drive,
+    electrical,
+    mechanical,
+    controller,
+    sensors,
+    options,
+    target,
+    norms,
+    residuals,
+):
     shared = units.shape[0] == 1
     n = drive.command.size
     for j in prange(faults.shape[0]):
-        out = _simulate_candidate(faults[j], units[0] if shared else units[j], drive,
-                                  Plant(electrical, mechanical, controller, sensors), options)
+        out = _simulate_candidate(
+            faults[j],
+            units[0] if shared else units[j],
+            drive,
+            Plant(electrical, mechanical, controller, sensors),
+            options,
+        )
         filtered = np.empty(n)
         signals = (out.current, out.position, out.speed)
         targets = (target.current, target.position, target.speed)
@@ -481,5 +596,9 @@ def _residuals_parallel(faults, units, drive, electrical, mechanical, controller
             for k in range(measured.size):
                 i = target.sample_index[k]
                 f = target.sample_fraction[k]
-                model = filtered[i] if f == 0.0 else filtered[i] + f * (filtered[i + 1] - filtered[i])
-                residuals[j, s, k] = math.sqrt(scale * target.sample_weight[k]) * (model - measured[k])
+                model = (
+                    filtered[i] if f == 0.0 else filtered[i] + f * (filtered[i + 1] - filtered[i])
+                )
+                residuals[j, s, k] = math.sqrt(scale * target.sample_weight[k]) * (
+                    model - measured[k]
+                )

@@ -20,20 +20,65 @@ from .control import quantize, sample_and_control
 from .mechanics import mechanics_step
 
 #: Slots of the energy ledger written by :func:`simulate_reference` [J].
-ENERGY_SLOTS = ("inverter", "copper", "friction", "viscous", "link_damping", "load",
-                "end_stop", "stored_initial", "stored_final")
-(E_INVERTER, E_COPPER, E_FRICTION, E_VISCOUS, E_LINK_DAMPING, E_LOAD, E_END_STOP,
- E_STORED_INITIAL, E_STORED_FINAL) = range(len(ENERGY_SLOTS))
+ENERGY_SLOTS = (
+    "inverter",
+    "copper",
+    "friction",
+    "viscous",
+    "link_damping",
+    "load",
+    "end_stop",
+    "stored_initial",
+    "stored_final",
+)
+(
+    E_INVERTER,
+    E_COPPER,
+    E_FRICTION,
+    E_VISCOUS,
+    E_LINK_DAMPING,
+    E_LOAD,
+    E_END_STOP,
+    E_STORED_INITIAL,
+    E_STORED_FINAL,
+) = range(len(ENERGY_SLOTS))
 
 #: Slots of the state carried from one call of :func:`simulate_reference` to the next,
 #: so that a long run can be done in chunks (progress bar) with the same numbers.
-STATE_SLOTS = ("current_a", "current_b", "current_c", "motor_angle", "motor_speed",
-               "surface_angle", "surface_speed", "position_integral", "speed_integral",
-               "bridge", "mean_current", "mean_current_a", "mean_current_b", "mean_current_c",
-               "mean_torque")
-(S_CURRENT_A, S_CURRENT_B, S_CURRENT_C, S_MOTOR_ANGLE, S_MOTOR_SPEED, S_SURFACE_ANGLE,
- S_SURFACE_SPEED, S_POSITION_INTEGRAL, S_SPEED_INTEGRAL, S_BRIDGE, S_MEAN_CURRENT,
- S_MEAN_CURRENT_A, S_MEAN_CURRENT_B, S_MEAN_CURRENT_C, S_MEAN_TORQUE) = range(len(STATE_SLOTS))
+STATE_SLOTS = (
+    "current_a",
+    "current_b",
+    "current_c",
+    "motor_angle",
+    "motor_speed",
+    "surface_angle",
+    "surface_speed",
+    "position_integral",
+    "speed_integral",
+    "bridge",
+    "mean_current",
+    "mean_current_a",
+    "mean_current_b",
+    "mean_current_c",
+    "mean_torque",
+)
+(
+    S_CURRENT_A,
+    S_CURRENT_B,
+    S_CURRENT_C,
+    S_MOTOR_ANGLE,
+    S_MOTOR_SPEED,
+    S_SURFACE_ANGLE,
+    S_SURFACE_SPEED,
+    S_POSITION_INTEGRAL,
+    S_SPEED_INTEGRAL,
+    S_BRIDGE,
+    S_MEAN_CURRENT,
+    S_MEAN_CURRENT_A,
+    S_MEAN_CURRENT_B,
+    S_MEAN_CURRENT_C,
+    S_MEAN_TORQUE,
+) = range(len(STATE_SLOTS))
 
 
 def initial_state() -> np.ndarray:
@@ -47,9 +92,9 @@ def initial_state() -> np.ndarray:
 def _stored_energy(i, l, theta_m, omega_m, theta_s, omega_s, backlash, mech):
     """Magnetic + kinetic + elastic energy [J] (link spring outside the dead band, stops)."""
     magnetic = 0.5 * (l[0] * i[0] ** 2 + l[1] * i[1] ** 2 + l[2] * i[2] ** 2)
-    kinetic = 0.5 * mech.motor_inertia * omega_m ** 2 + 0.5 * mech.surface_inertia * omega_s ** 2
+    kinetic = 0.5 * mech.motor_inertia * omega_m**2 + 0.5 * mech.surface_inertia * omega_s**2
     twist = abs(theta_m / mech.gear_ratio - theta_s) - 0.5 * backlash
-    elastic = 0.5 * mech.transmission_stiffness * twist ** 2 if twist > 0.0 else 0.0
+    elastic = 0.5 * mech.transmission_stiffness * twist**2 if twist > 0.0 else 0.0
     return magnetic + kinetic + elastic
 
 
@@ -119,12 +164,20 @@ def simulate_reference(drive, noise, plant, faults, substeps, out, energy, state
     if start == 0:
         for slot in range(energy.size):
             energy[slot] = 0.0
-        energy[E_STORED_INITIAL] = _stored_energy(i, l, theta_m, omega_m, theta_s, omega_s,
-                                                  faults.backlash, mech)
+        energy[E_STORED_INITIAL] = _stored_energy(
+            i, l, theta_m, omega_m, theta_s, omega_s, faults.backlash, mech
+        )
     for k in range(start, stop):
         pos_meas, spd_meas, current_ref, position_int, speed_int = sample_and_control(
-            drive.command[k], theta_s, omega_m, noise.position[k], noise.speed[k],
-            position_int, speed_int, plant)
+            drive.command[k],
+            theta_s,
+            omega_m,
+            noise.position[k],
+            noise.speed[k],
+            position_int,
+            speed_int,
+            plant,
+        )
         out.position[k] = pos_meas
         out.speed[k] = spd_meas
         out.motor_angle[k] = theta_m
@@ -151,8 +204,14 @@ def simulate_reference(drive, noise, plant, faults, substeps, out, energy, state
             legs[IDLE_PHASE[s6]] = 0
             torque = 0.0
             for x in range(3):
-                kx = phase_coefficient(theta_e, working[x], faults.eccentricity_zeta,
-                                       faults.eccentricity_phase, x, elec.back_emf_constant)
+                kx = phase_coefficient(
+                    theta_e,
+                    working[x],
+                    faults.eccentricity_zeta,
+                    faults.eccentricity_phase,
+                    x,
+                    elec.back_emf_constant,
+                )
                 shape = kx * trapezoid(theta_e + PHASE_OFFSET[x])
                 e[x] = shape * omega_m
                 torque += shape * i[x]
@@ -161,16 +220,29 @@ def simulate_reference(drive, noise, plant, faults, substeps, out, energy, state
             omega_m_old = omega_m
             omega_s_old = omega_s
             theta_m, omega_m, theta_s, omega_s, applied = mechanics_step(
-                theta_m, omega_m, theta_s, omega_s, torque, load, drive.load_stiffness,
-                faults.friction, faults.backlash, mech, dt)
+                theta_m,
+                omega_m,
+                theta_s,
+                omega_s,
+                torque,
+                load,
+                drive.load_stiffness,
+                faults.friction,
+                faults.backlash,
+                mech,
+                dt,
+            )
             energy[E_INVERTER] += power * dt
             energy[E_COPPER] += copper * dt
             energy[E_FRICTION] -= applied.friction * omega_m * dt
-            energy[E_VISCOUS] += (mech.motor_viscous * omega_m_old * omega_m
-                                  + mech.surface_damping * omega_s_old * omega_s) * dt
+            energy[E_VISCOUS] += (
+                mech.motor_viscous * omega_m_old * omega_m
+                + mech.surface_damping * omega_s_old * omega_s
+            ) * dt
             if applied.link != 0.0:
-                energy[E_LINK_DAMPING] += ((applied.link - applied.spring)
-                                           * (omega_m / mech.gear_ratio - omega_s) * dt)
+                energy[E_LINK_DAMPING] += (
+                    (applied.link - applied.spring) * (omega_m / mech.gear_ratio - omega_s) * dt
+                )
             energy[E_LOAD] += applied.hinge * omega_s * dt
             energy[E_END_STOP] -= applied.end_stop * omega_s * dt
             acc_eq += equivalent_current(i[0], i[1], i[2], torque)
@@ -183,13 +255,24 @@ def simulate_reference(drive, noise, plant, faults, substeps, out, energy, state
         acc_b /= substeps
         acc_c /= substeps
         acc_t /= substeps
-    energy[E_STORED_FINAL] = _stored_energy(i, l, theta_m, omega_m, theta_s, omega_s,
-                                            faults.backlash, mech)
-    for slot, value in ((S_CURRENT_A, i[0]), (S_CURRENT_B, i[1]), (S_CURRENT_C, i[2]),
-                        (S_MOTOR_ANGLE, theta_m), (S_MOTOR_SPEED, omega_m),
-                        (S_SURFACE_ANGLE, theta_s), (S_SURFACE_SPEED, omega_s),
-                        (S_POSITION_INTEGRAL, position_int), (S_SPEED_INTEGRAL, speed_int),
-                        (S_BRIDGE, float(bridge)), (S_MEAN_CURRENT, acc_eq),
-                        (S_MEAN_CURRENT_A, acc_a), (S_MEAN_CURRENT_B, acc_b),
-                        (S_MEAN_CURRENT_C, acc_c), (S_MEAN_TORQUE, acc_t)):
+    energy[E_STORED_FINAL] = _stored_energy(
+        i, l, theta_m, omega_m, theta_s, omega_s, faults.backlash, mech
+    )
+    for slot, value in (
+        (S_CURRENT_A, i[0]),
+        (S_CURRENT_B, i[1]),
+        (S_CURRENT_C, i[2]),
+        (S_MOTOR_ANGLE, theta_m),
+        (S_MOTOR_SPEED, omega_m),
+        (S_SURFACE_ANGLE, theta_s),
+        (S_SURFACE_SPEED, omega_s),
+        (S_POSITION_INTEGRAL, position_int),
+        (S_SPEED_INTEGRAL, speed_int),
+        (S_BRIDGE, float(bridge)),
+        (S_MEAN_CURRENT, acc_eq),
+        (S_MEAN_CURRENT_A, acc_a),
+        (S_MEAN_CURRENT_B, acc_b),
+        (S_MEAN_CURRENT_C, acc_c),
+        (S_MEAN_TORQUE, acc_t),
+    ):
         state[slot] = value

@@ -71,17 +71,37 @@ class Plant(NamedTuple):
 #: Columns of a per-candidate unit row (:func:`emaprog.kernels.monitor.evaluate_population`):
 #: the physical values that vary from unit to unit, and the recording's constant hinge
 #: moment. Units: kg m^2, kg m^2, N m s/rad, N m, N m, ohm, V s/rad, H, N m/rad, N m.
-UNIT_COLUMNS = ("motor_inertia", "surface_inertia", "motor_viscous", "static_friction",
-                "dynamic_friction", "phase_resistance", "back_emf_constant", "phase_inductance",
-                "transmission_stiffness", "hinge_moment")
+UNIT_COLUMNS = (
+    "motor_inertia",
+    "surface_inertia",
+    "motor_viscous",
+    "static_friction",
+    "dynamic_friction",
+    "phase_resistance",
+    "back_emf_constant",
+    "phase_inductance",
+    "transmission_stiffness",
+    "hinge_moment",
+)
 
 
 def unit_row(plant: Plant, hinge_moment: float = 0.0) -> np.ndarray:
     """The :data:`UNIT_COLUMNS` row of a plant as it is [SI]."""
     e, m = plant.electrical, plant.mechanical
-    return np.array([m.motor_inertia, m.surface_inertia, m.motor_viscous, m.static_friction,
-                     m.dynamic_friction, e.phase_resistance, e.back_emf_constant,
-                     e.phase_inductance, m.transmission_stiffness, hinge_moment])
+    return np.array(
+        [
+            m.motor_inertia,
+            m.surface_inertia,
+            m.motor_viscous,
+            m.static_friction,
+            m.dynamic_friction,
+            e.phase_resistance,
+            e.back_emf_constant,
+            e.phase_inductance,
+            m.transmission_stiffness,
+            hinge_moment,
+        ]
+    )
 
 
 # ---------------------------------------------------------------- inputs
@@ -92,7 +112,9 @@ class Drive(NamedTuple):
     load_torque: np.ndarray  # (n,) [N m] hinge moment opposing +deflection
     load_stiffness: float  # [N m/rad] aerodynamic spring
     load_offset: float  # [N m] constant hinge moment added to load_torque (a nuisance)
-    electrical_angle: float  # [rad] rotor electrical angle at the first sample (0: at electrical zero)
+    electrical_angle: (
+        float  # [rad] rotor electrical angle at the first sample (0: at electrical zero)
+    )
 
 
 class SensorNoise(NamedTuple):

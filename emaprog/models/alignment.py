@@ -36,13 +36,15 @@ class Alignment(NamedTuple):
     note: str
 
 
-def align_command(scenario: Scenario, params: Parameters, time: np.ndarray,
-                  position: np.ndarray) -> Alignment:
+def align_command(
+    scenario: Scenario, params: Parameters, time: np.ndarray, position: np.ndarray
+) -> Alignment:
     """The scenario's command placed in the recording's time by its position response."""
     t = np.asarray(time, dtype=np.float64) - float(time[0])
     inp = inputs(scenario, params)
-    model = monitor.run(params, inp, monitor_form(healthy_values(),
-                                                  params.spec.monitor.eccentricity_gain))
+    model = monitor.run(
+        params, inp, monitor_form(healthy_values(), params.spec.monitor.eccentricity_gain)
+    )
     period = float(np.median(np.diff(t)))
     grid = np.arange(t.size) * period
     # the model's position on the recording's grid, from its own start; the command before
@@ -52,30 +54,43 @@ def align_command(scenario: Scenario, params: Parameters, time: np.ndarray,
     measured = np.asarray(position, dtype=np.float64)
     lag = _best_lag(measured, response[:n_model])
     delay = lag * period
-    shifted = np.interp(t - delay, inp.time, model["position"],
-                        left=model["position"][0], right=model["position"][-1])
+    shifted = np.interp(
+        t - delay,
+        inp.time,
+        model["position"],
+        left=model["position"][0],
+        right=model["position"][-1],
+    )
     residual = measured - shifted
-    s2 = float(np.mean(residual ** 2))
+    s2 = float(np.mean(residual**2))
     step = period
     curvature = []
     for h in (-step, step):
-        other = np.interp(t - delay - h, inp.time, model["position"],
-                          left=model["position"][0], right=model["position"][-1])
+        other = np.interp(
+            t - delay - h,
+            inp.time,
+            model["position"],
+            left=model["position"][0],
+            right=model["position"][-1],
+        )
         curvature.append(float(np.sum((measured - other) ** 2)))
-    d2 = (curvature[0] + curvature[1] - 2.0 * float(np.sum(residual ** 2))) / step ** 2
+    d2 = (curvature[0] + curvature[1] - 2.0 * float(np.sum(residual**2))) / step**2
     refine = 0.0
     if d2 > 0:
-        refine = 0.5 * (curvature[0] - curvature[1]) / (d2 * step ** 2) * step
+        refine = 0.5 * (curvature[0] - curvature[1]) / (d2 * step**2) * step
         refine = float(np.clip(refine, -step, step))
     delay += refine
     length = signals.correlation_length(residual, [residual.size])
     error = math.sqrt(2.0 * s2 * length / d2) if d2 > 0 else math.inf
-    command = np.interp(t - delay, inp.time, inp.command, left=inp.command[0],
-                        right=inp.command[-1])
-    note = (f"no command channel: the command of scenario '{scenario.name}' "
-            f"({scenario.command.kind}, {scenario.duration:g} s), starting {delay * 1e3:.3f} ms "
-            f"after the first sample (standard error {error * 1e6:.1f} us), placed by fitting "
-            "the healthy Monitor's position to the recorded position")
+    command = np.interp(
+        t - delay, inp.time, inp.command, left=inp.command[0], right=inp.command[-1]
+    )
+    note = (
+        f"no command channel: the command of scenario '{scenario.name}' "
+        f"({scenario.command.kind}, {scenario.duration:g} s), starting {delay * 1e3:.3f} ms "
+        f"after the first sample (standard error {error * 1e6:.1f} us), placed by fitting "
+        "the healthy Monitor's position to the recorded position"
+    )
     return Alignment(command, float(delay), float(error), note)
 
 
@@ -89,9 +104,9 @@ def _best_lag(measured: np.ndarray, response: np.ndarray) -> int:
     size = 1 << int(math.ceil(math.log2(2 * n)))
     # cross[k] = sum_{t >= k} x_t r_{t-k}
     cross = np.fft.irfft(np.fft.rfft(x, size) * np.conj(np.fft.rfft(r, size)), size)[:n]
-    x2 = np.concatenate([[0.0], np.cumsum(x ** 2)])  # x2[k] = sum_{t<k} x_t^2
+    x2 = np.concatenate([[0.0], np.cumsum(x**2)])  # x2[k] = sum_{t<k} x_t^2
     x1 = np.concatenate([[0.0], np.cumsum(x)])
-    r2 = np.concatenate([[0.0], np.cumsum(r ** 2)])  # r2[j] = sum_{i<j} r_i^2
+    r2 = np.concatenate([[0.0], np.cumsum(r**2)])  # r2[j] = sum_{i<j} r_i^2
     k = np.arange(n)
     before = x2[k] - 2.0 * r[0] * x1[k] + k * r[0] ** 2
     after = (x2[n] - x2[k]) - 2.0 * cross + r2[n - k]

@@ -25,8 +25,13 @@ class Inputs(NamedTuple):
 
     def drive(self, hinge_moment: float = 0.0) -> Drive:
         """The kernels' :class:`~emaprog.kernels.structs.Drive`, plus a constant hinge moment [N m]."""
-        return Drive(self.command, self.load_torque, float(self.load_stiffness), float(hinge_moment),
-                     float(self.electrical_angle))
+        return Drive(
+            self.command,
+            self.load_torque,
+            float(self.load_stiffness),
+            float(hinge_moment),
+            float(self.electrical_angle),
+        )
 
 
 def inputs(scenario: Scenario, params: Parameters) -> Inputs:
@@ -52,7 +57,7 @@ def starts_loaded(trace) -> bool:
     n = signals.head_samples(time)
     head = float(np.mean(np.abs(current[:n])))
     sigma = signals.noise_sigma(current, 0.0)
-    return head > max(4.0 * sigma, 0.05 * float(np.sqrt(np.mean(current ** 2))))
+    return head > max(4.0 * sigma, 0.05 * float(np.sqrt(np.mean(current**2))))
 
 
 def settle_lead(trace, rate: float) -> int:
@@ -74,7 +79,8 @@ def settle_lead(trace, rate: float) -> int:
     span = max(float(np.ptp(command)), 1e-9)
     n = signals.head_samples(trace.time)
     at_command = abs(float(np.mean(position[:n])) - float(command[0])) <= max(
-        0.01 * span, 5.0 * signals.noise_sigma(position, 0.0) / math.sqrt(n))
+        0.01 * span, 5.0 * signals.noise_sigma(position, 0.0) / math.sqrt(n)
+    )
     at_zero = abs(float(command[0])) <= 1e-3 * span
     if not at_command or (at_zero and not starts_loaded(trace)):
         return 0  # at rest unloaded at zero, or not yet at its first command (a step at 0)
@@ -126,8 +132,11 @@ class Instants(NamedTuple):
     def sample(self, x: np.ndarray) -> np.ndarray:
         """A controller-grid signal at the recorded instants (linear interpolation)."""
         nxt = np.minimum(self.index + 1, x.size - 1)
-        return np.where(self.fraction == 0.0, x[self.index],
-                        x[self.index] + self.fraction * (x[nxt] - x[self.index]))
+        return np.where(
+            self.fraction == 0.0,
+            x[self.index],
+            x[self.index] + self.fraction * (x[nxt] - x[self.index]),
+        )
 
 
 def recorded_instants(trace_time: np.ndarray, grid: np.ndarray, shift: float = 0.0) -> Instants:

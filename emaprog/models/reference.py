@@ -24,8 +24,11 @@ def noise(params: Parameters, n: int, seed: int, enabled: bool = True) -> Sensor
     rng = np.random.default_rng(np.random.SeedSequence(seed))
     draws = rng.standard_normal((n, 6))
     currents = draws[:, 2:] * s.current_noise
-    return SensorNoise(draws[:, 0] * s.position_noise, draws[:, 1] * s.speed_noise,
-                       *(np.ascontiguousarray(currents[:, j]) for j in range(4)))
+    return SensorNoise(
+        draws[:, 0] * s.position_noise,
+        draws[:, 1] * s.speed_noise,
+        *(np.ascontiguousarray(currents[:, j]) for j in range(4)),
+    )
 
 
 #: Integration steps above which a run takes about a second or more (0.2 us per step):
@@ -34,9 +37,16 @@ PROGRESS_STEPS = 5_000_000
 CHUNKS = 50  # kernel calls of a run with a progress bar (the state carries over exactly)
 
 
-def run(params: Parameters, inp: Inputs, faults: FaultParams, seed: int = 0,
-        with_noise: bool = True, numerics: Numerics = DEFAULT, show_progress: bool = False,
-        hinge_moment: float = 0.0):
+def run(
+    params: Parameters,
+    inp: Inputs,
+    faults: FaultParams,
+    seed: int = 0,
+    with_noise: bool = True,
+    numerics: Numerics = DEFAULT,
+    show_progress: bool = False,
+    hinge_moment: float = 0.0,
+):
     """Run the kernel; returns (columns dict, energy ledger dict).
 
     ``hinge_moment`` [N m] is a constant hinge moment added to the inputs' load.
@@ -54,18 +64,45 @@ def run(params: Parameters, inp: Inputs, faults: FaultParams, seed: int = 0,
     drive, plant = inp.drive(hinge_moment), params.plant
     with progress.task("reference model", n, long_run) as advance:
         for start, stop in zip(bounds[:-1], bounds[1:]):
-            simulate_reference(drive, line_noise, plant, faults, numerics.reference_substeps, out,
-                               energy, state, int(start), int(stop))
+            simulate_reference(
+                drive,
+                line_noise,
+                plant,
+                faults,
+                numerics.reference_substeps,
+                out,
+                energy,
+                state,
+                int(start),
+                int(stop),
+            )
             advance(int(stop - start))
     columns = {"time": inp.time, "command": inp.command, **out._asdict()}
     return columns, dict(zip(ENERGY_SLOTS, energy.tolist()))
 
 
-def simulate(scenario: Scenario, params: Parameters, with_noise: bool = True,
-             numerics: Numerics = DEFAULT, show_progress: bool = False) -> Trace:
+def simulate(
+    scenario: Scenario,
+    params: Parameters,
+    with_noise: bool = True,
+    numerics: Numerics = DEFAULT,
+    show_progress: bool = False,
+) -> Trace:
     """Simulate a scenario on the Reference Model and return the measured trace."""
-    columns, _ = run(params, inputs(scenario, params), reference_form(flatten(scenario.faults)),
-                     scenario.seed, with_noise, numerics, show_progress)
-    meta = provenance("reference", scenario, params, noise=with_noise,
-                      time_step=params.controller.period / numerics.reference_substeps)
+    columns, _ = run(
+        params,
+        inputs(scenario, params),
+        reference_form(flatten(scenario.faults)),
+        scenario.seed,
+        with_noise,
+        numerics,
+        show_progress,
+    )
+    meta = provenance(
+        "reference",
+        scenario,
+        params,
+        noise=with_noise,
+        time_step=params.controller.period / numerics.reference_substeps,
+    )
     return Trace(columns, meta)

@@ -14,6 +14,7 @@ from .history import HistoryTable
 
 ALPHA = 0.2  # [-] half width of the alpha-lambda cone around the true RUL
 
+
 def _finite(x: float) -> float | None:
     """JSON has no infinity: a RUL beyond the prognosis horizon is written as null."""
     return float(x) if math.isfinite(x) else None
@@ -48,11 +49,20 @@ def analyse(table: HistoryTable, params: Parameters, law: str = "auto") -> dict:
         s = table.severity[fault]
         detected = np.flatnonzero(s >= limits.incipient)
         entry = {
-            "status": "not detected", "law": None, "a": None, "b": None, "sigma": None,
-            "threshold": limits.failure, "incipient": limits.incipient,
+            "status": "not detected",
+            "law": None,
+            "a": None,
+            "b": None,
+            "sigma": None,
+            "threshold": limits.failure,
+            "incipient": limits.incipient,
             "detected_at": float(usage[detected[0]]) if detected.size else None,
-            "rul": {"median": None, "low": None, "high": None}, "failure_at": None,
-            "severity": s.tolist(), "predictions": [], "truth": None, "metrics": None,
+            "rul": {"median": None, "low": None, "high": None},
+            "failure_at": None,
+            "severity": s.tolist(),
+            "predictions": [],
+            "truth": None,
+            "metrics": None,
         }
         if table.truth is not None:
             entry["truth"] = table.truth[fault].tolist()
@@ -61,27 +71,53 @@ def analyse(table: HistoryTable, params: Parameters, law: str = "auto") -> dict:
             continue
         if detected.size < MIN_DETECTED:
             entry["status"] = "insufficient history"
-            entry["note"] = (f"detected at {detected.size} inspection(s) only: a growth law and "
-                             f"its remaining useful life rest on at least {MIN_DETECTED} "
-                             "inspections with the fault detected; inspect again")
+            entry["note"] = (
+                f"detected at {detected.size} inspection(s) only: a growth law and "
+                f"its remaining useful life rest on at least {MIN_DETECTED} "
+                "inspections with the fault detected; inspect again"
+            )
             continue
         floor = inspection_sigma(table, fault)
         last = predict(usage, s, limits.failure, law, seed=index, noise_floor=floor)
         history = []
         for k in range(max(MIN_POINTS, int(detected[0]) + 1), usage.size + 1):
-            p = last if k == usage.size else predict(usage[:k], s[:k], limits.failure, law,
-                                                     seed=1000 * index + k, noise_floor=floor[:k])
-            history.append({"usage": float(usage[k - 1]), "median": _finite(p.rul_median),
-                            "low": _finite(p.rul_low), "high": _finite(p.rul_high)})
-        entry.update({
-            "status": "failed" if s[-1] >= limits.failure else "tracked",
-            "law": last.fit.law, "a": last.fit.a, "b": last.fit.b, "sigma": last.fit.sigma,
-            "rul": {"median": _finite(last.rul_median), "low": _finite(last.rul_low),
-                    "high": _finite(last.rul_high)},
-            "failure_at": _finite(last.now + last.rul_median),
-            "predictions": history,
-            "uncertainty": _uncertainty(table, fault),
-        })
+            p = (
+                last
+                if k == usage.size
+                else predict(
+                    usage[:k],
+                    s[:k],
+                    limits.failure,
+                    law,
+                    seed=1000 * index + k,
+                    noise_floor=floor[:k],
+                )
+            )
+            history.append(
+                {
+                    "usage": float(usage[k - 1]),
+                    "median": _finite(p.rul_median),
+                    "low": _finite(p.rul_low),
+                    "high": _finite(p.rul_high),
+                }
+            )
+        entry.update(
+            {
+                "status": "failed" if s[-1] >= limits.failure else "tracked",
+                "law": last.fit.law,
+                "a": last.fit.a,
+                "b": last.fit.b,
+                "sigma": last.fit.sigma,
+                "rul": {
+                    "median": _finite(last.rul_median),
+                    "low": _finite(last.rul_low),
+                    "high": _finite(last.rul_high),
+                },
+                "failure_at": _finite(last.now + last.rul_median),
+                "predictions": history,
+                "uncertainty": _uncertainty(table, fault),
+            }
+        )
         if table.truth is not None:
             failure = table.failure_usage.get(fault, math.inf) if table.failure_usage else math.inf
             entry["metrics"] = _metrics(history, failure, last)
@@ -119,10 +155,15 @@ def _metrics(history: list[dict], failure: float, last) -> dict:
     """Prognostic metrics against the true failure usage (inf: the fault never fails)."""
     true_rul = failure - last.now
     if not math.isfinite(failure):
-        return {"true_failure_at": None, "true_rul": None,
-                "covered": not math.isfinite(last.rul_high), "relative_accuracy": None,
-                "mean_relative_accuracy": None, "alpha_lambda_share": None,
-                "prognostic_horizon": None}
+        return {
+            "true_failure_at": None,
+            "true_rul": None,
+            "covered": not math.isfinite(last.rul_high),
+            "relative_accuracy": None,
+            "mean_relative_accuracy": None,
+            "alpha_lambda_share": None,
+            "prognostic_horizon": None,
+        }
     usage = np.array([h["usage"] for h in history])
     predicted = np.array([h["median"] if h["median"] is not None else math.inf for h in history])
     before = usage < failure

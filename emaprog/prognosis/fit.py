@@ -68,8 +68,9 @@ def _fit_one(law: str, usage: np.ndarray, severity: np.ndarray) -> tuple[float, 
     else:
         start = (max(float(np.mean(severity)), 1e-9), 0.0)
     try:
-        (a, b), _ = curve_fit(lambda u, a, b: growth("exponential", u, a, b), usage, severity,
-                              p0=start, maxfev=2000)
+        (a, b), _ = curve_fit(
+            lambda u, a, b: growth("exponential", u, a, b), usage, severity, p0=start, maxfev=2000
+        )
     except (RuntimeError, ValueError):  # no convergence: the log-linear start is the fit
         a, b = start
     return float(a), float(b)
@@ -78,8 +79,9 @@ def _fit_one(law: str, usage: np.ndarray, severity: np.ndarray) -> tuple[float, 
 GAUSS_NEWTON_STEPS = 12  # from the fit of the data every replicate is a small step away
 
 
-def _refit_replicates(best: TrendFit, usage: np.ndarray,
-                      replicates: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _refit_replicates(
+    best: TrendFit, usage: np.ndarray, replicates: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Least-squares law parameters of every bootstrap replicate (rows), all at once.
 
     Linear: one ``lstsq`` for all rows. Exponential: Gauss-Newton on
@@ -126,7 +128,7 @@ def fit(usage: np.ndarray, severity: np.ndarray, law: str = "auto") -> TrendFit:
     for name in candidates:
         a, b = _fit_one(name, usage, severity)
         residual = severity - growth(name, usage, a, b)
-        rss = float(np.sum(residual ** 2))
+        rss = float(np.sum(residual**2))
         sigma = math.sqrt(rss / max(n - 2, 1))
         aic = n * math.log(max(rss / n, 1e-300)) + 4.0
         if best is None or aic < best.aic:
@@ -145,8 +147,14 @@ class Prediction(NamedTuple):
     samples: np.ndarray  # [h] bootstrap RUL samples (inf where no crossing)
 
 
-def predict(usage: np.ndarray, severity: np.ndarray, threshold: float, law: str = "auto",
-            seed: int = 0, noise_floor: float | np.ndarray = 0.0) -> Prediction:
+def predict(
+    usage: np.ndarray,
+    severity: np.ndarray,
+    threshold: float,
+    law: str = "auto",
+    seed: int = 0,
+    noise_floor: float | np.ndarray = 0.0,
+) -> Prediction:
     """RUL to ``threshold`` from the last inspection, with its bootstrap distribution.
 
     A fault already past the threshold has RUL 0. The bootstrap adds Gaussian
@@ -185,8 +193,9 @@ def alpha_lambda(predicted: float, true: float, alpha: float = 0.2) -> bool:
     return math.isfinite(predicted) and abs(predicted - true) <= alpha * true
 
 
-def prognostic_horizon(usage: np.ndarray, predicted: np.ndarray, true_failure: float,
-                       alpha: float = 0.2) -> float:
+def prognostic_horizon(
+    usage: np.ndarray, predicted: np.ndarray, true_failure: float, alpha: float = 0.2
+) -> float:
     """Usage-to-failure left when the predictions enter the +/- alpha cone for good [h].
 
     0 when they never do (or only at the last inspection before the failure).

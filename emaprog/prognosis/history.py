@@ -82,8 +82,7 @@ def _interval_of(report: dict) -> dict[str, tuple[float, float] | None]:
 
 
 def _sigmas(intervals: list[dict[str, tuple[float, float] | None]]) -> dict[str, np.ndarray]:
-    return {f: np.array([severity_sigma(f, i) for i in intervals])
-            for f in FAULT_NAMES}
+    return {f: np.array([severity_sigma(f, i) for i in intervals]) for f in FAULT_NAMES}
 
 
 def _severities(values: list[dict[str, float]]) -> dict[str, np.ndarray]:
@@ -96,8 +95,11 @@ def _check_usage(usage: np.ndarray, source: str | Path, key: str) -> None:
     if not np.all(np.isfinite(usage)) or np.any(usage < 0):
         raise InputError(source, "usage must be finite and >= 0 flight hours", key)
     if np.any(np.diff(usage) <= 0):
-        raise InputError(source, "inspections must be sorted by usage, each usage once "
-                         "(strictly increasing)", key)
+        raise InputError(
+            source,
+            "inspections must be sorted by usage, each usage once (strictly increasing)",
+            key,
+        )
 
 
 def read_table(path: str | Path) -> HistoryTable:
@@ -106,29 +108,40 @@ def read_table(path: str | Path) -> HistoryTable:
     try:
         table = pq.read_table(path)
     except (pa.ArrowInvalid, OSError) as exc:
-        raise InputError(path, f"is not a readable Parquet history ({str(exc).splitlines()[0]})") from None
+        raise InputError(
+            path, f"is not a readable Parquet history ({str(exc).splitlines()[0]})"
+        ) from None
     names = table.column_names
     missing = [c for c in ("actuator", "usage", *TABLE_COLUMNS) if c not in names]
     if missing:
-        raise InputError(path, f"missing column(s) {', '.join(missing)}; a history table needs "
-                         f"actuator, usage, {', '.join(TABLE_COLUMNS)}")
+        raise InputError(
+            path,
+            f"missing column(s) {', '.join(missing)}; a history table needs "
+            f"actuator, usage, {', '.join(TABLE_COLUMNS)}",
+        )
     actuators = sorted({str(a) for a in table.column("actuator").to_pylist()})
     if len(actuators) != 1:
-        raise InputError(path, f"holds {len(actuators)} actuators ({', '.join(actuators[:5])}); "
-                         "a history is one actuator's: split the table", "actuator")
+        raise InputError(
+            path,
+            f"holds {len(actuators)} actuators ({', '.join(actuators[:5])}); "
+            "a history is one actuator's: split the table",
+            "actuator",
+        )
     columns = {}
     for name in ("usage", *TABLE_COLUMNS):
         column = table.column(name)
-        if column.null_count or not (pa.types.is_floating(column.type)
-                                     or pa.types.is_integer(column.type)):
+        if column.null_count or not (
+            pa.types.is_floating(column.type) or pa.types.is_integer(column.type)
+        ):
             raise InputError(path, "must be numbers with no missing value", name)
         columns[name] = column.to_numpy().astype(float)
         if not np.all(np.isfinite(columns[name])):
             raise InputError(path, "holds NaN or infinite values", name)
     _check_usage(columns["usage"], path, "usage")
-    values = [{**healthy_values(),
-               **{c: float(columns[c][k]) for c in TABLE_COLUMNS}}
-              for k in range(columns["usage"].size)]
+    values = [
+        {**healthy_values(), **{c: float(columns[c][k]) for c in TABLE_COLUMNS}}
+        for k in range(columns["usage"].size)
+    ]
     return HistoryTable(actuators[0], str(path), columns["usage"], _severities(values), None, None)
 
 
@@ -137,8 +150,11 @@ def read_reports(folder: str | Path) -> HistoryTable:
     folder = Path(folder)
     files = sorted(folder.rglob("report.json"))
     if not files:
-        raise InputError(folder, "holds no report.json (write them with `emaprog identify TRACE "
-                         "--actuator ID --usage HOURS -o DIR`)")
+        raise InputError(
+            folder,
+            "holds no report.json (write them with `emaprog identify TRACE "
+            "--actuator ID --usage HOURS -o DIR`)",
+        )
     entries = []
     for path in files:
         try:
@@ -149,21 +165,35 @@ def read_reports(folder: str | Path) -> HistoryTable:
         except (json.JSONDecodeError, UnicodeDecodeError):
             raise InputError(path, "is not valid JSON") from None
         except (KeyError, TypeError, ValueError):
-            raise InputError(path, "lacks inspection.actuator, inspection.usage or a full estimate "
-                             "(identify with --actuator ID --usage HOURS)", "inspection") from None
+            raise InputError(
+                path,
+                "lacks inspection.actuator, inspection.usage or a full estimate "
+                "(identify with --actuator ID --usage HOURS)",
+                "inspection",
+            ) from None
         entries.append((usage, actuator, values, path, _interval_of(report)))
     actuators = sorted({e[1] for e in entries})
     if len(actuators) != 1:
-        raise InputError(folder, f"mixes actuators ({', '.join(actuators[:5])}); a history is one "
-                         "actuator's reports", "inspection.actuator")
+        raise InputError(
+            folder,
+            f"mixes actuators ({', '.join(actuators[:5])}); a history is one actuator's reports",
+            "inspection.actuator",
+        )
     entries.sort(key=lambda e: e[0])
     usages = np.array([e[0] for e in entries])
     repeated = [str(e[3]) for a, e in zip(entries, entries[1:]) if e[0] == a[0]]
     if repeated:
         raise InputError(repeated[0], "repeats the usage of another report", "inspection.usage")
     _check_usage(usages, folder, "inspection.usage")
-    return HistoryTable(actuators[0], str(folder), usages, _severities([e[2] for e in entries]),
-                        None, None, _sigmas([e[4] for e in entries]))
+    return HistoryTable(
+        actuators[0],
+        str(folder),
+        usages,
+        _severities([e[2] for e in entries]),
+        None,
+        None,
+        _sigmas([e[4] for e in entries]),
+    )
 
 
 # ---------------------------------------------------------------- synthetic histories
@@ -183,8 +213,9 @@ def realised_laws(history: History) -> dict[str, Degradation]:
     for fault, z in zip(FAULT_NAMES, draws):
         spec = getattr(history.growth, fault)
         if spec is not None:
-            laws[fault] = Degradation(spec.law, spec.initial,
-                                      spec.rate * math.exp(spec.variability * z))
+            laws[fault] = Degradation(
+                spec.law, spec.initial, spec.rate * math.exp(spec.variability * z)
+            )
     return laws
 
 
@@ -228,13 +259,17 @@ def failure_usage(law: Degradation, threshold: float) -> float:
 
 
 def history_hash(history: History, base: Scenario, params: Parameters) -> str:
-    content = {"history": history.model_dump(mode="json", exclude={"scenario"}),
-               "scenario": base.model_dump(mode="json"), "parameters": params.values()}
+    content = {
+        "history": history.model_dump(mode="json", exclude={"scenario"}),
+        "scenario": base.model_dump(mode="json"),
+        "parameters": params.values(),
+    }
     return hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()
 
 
-def inspection_specs(history: History, base: Scenario, params: Parameters, digest: str,
-                     indices: list[int]) -> list[campaigns.CaseSpec]:
+def inspection_specs(
+    history: History, base: Scenario, params: Parameters, digest: str, indices: list[int]
+) -> list[campaigns.CaseSpec]:
     """One case per inspection: the true faults at its usage, its own noise and GA seeds."""
     laws = realised_laws(history)
     settings = history.identify if "identify" in history.model_fields_set else base.identify
@@ -243,24 +278,50 @@ def inspection_specs(history: History, base: Scenario, params: Parameters, diges
         usage = history.inspections.start + k * history.inspections.step
         rng = np.random.default_rng(np.random.SeedSequence(history.seed, spawn_key=(k,)))
         noise_seed, ga_seed = (int(s) for s in rng.integers(0, campaigns.SEED_LIMIT, size=2))
-        specs.append(campaigns.make_spec(k, False, f"{history.actuator}-{k}", base,
-                                         true_faults(history, laws, usage), noise_seed, ga_seed,
-                                         settings, params, digest))
+        specs.append(
+            campaigns.make_spec(
+                k,
+                False,
+                f"{history.actuator}-{k}",
+                base,
+                true_faults(history, laws, usage),
+                noise_seed,
+                ga_seed,
+                settings,
+                params,
+                digest,
+            )
+        )
     return specs
 
 
-def from_cases(history: History, params: Parameters, store: campaigns.CaseStore,
-               source: str) -> HistoryTable:
+def from_cases(
+    history: History, params: Parameters, store: campaigns.CaseStore, source: str
+) -> HistoryTable:
     """The history table of a finished synthetic history (truth included)."""
     frame = store.read()
     usage = history.inspections.start + frame["case_id"].to_numpy(float) * history.inspections.step
     estimated = [{q: float(row[f"est_{q}"]) for q in QUANTITIES} for _, row in frame.iterrows()]
     true = [{q: float(row[f"true_{q}"]) for q in QUANTITIES} for _, row in frame.iterrows()]
     laws = realised_laws(history)
-    failure = {f: failure_usage(law, getattr(params.spec.health, f).failure)
-               for f, law in laws.items()}
-    intervals = [{q: (float(row[f"low_{q}"]), float(row[f"high_{q}"]))
-                  if f"low_{q}" in row and np.isfinite(row[f"low_{q}"]) else None
-                  for q in QUANTITIES} for _, row in frame.iterrows()]
-    return HistoryTable(history.actuator, source, usage, _severities(estimated),
-                        _severities(true), failure, _sigmas(intervals))
+    failure = {
+        f: failure_usage(law, getattr(params.spec.health, f).failure) for f, law in laws.items()
+    }
+    intervals = [
+        {
+            q: (float(row[f"low_{q}"]), float(row[f"high_{q}"]))
+            if f"low_{q}" in row and np.isfinite(row[f"low_{q}"])
+            else None
+            for q in QUANTITIES
+        }
+        for _, row in frame.iterrows()
+    ]
+    return HistoryTable(
+        history.actuator,
+        source,
+        usage,
+        _severities(estimated),
+        _severities(true),
+        failure,
+        _sigmas(intervals),
+    )
