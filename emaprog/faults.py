@@ -122,6 +122,10 @@ class Fault(NamedTuple):
     #: with five times the noise covered in 65-82 % of cases (campaigns/off-calibration).
     #: The phases' laws differ: the Monitor's mismatch is not the same on each winding.
     twin_error: tuple[ModelError, ...]
+    #: (incipient, degraded, failure) severities a parameter set's ``health:`` section takes
+    #: when it leaves the fault out (a unit file written before the fault was catalogued):
+    #: the shipped set's own thresholds.
+    health: tuple[float, float, float]
 
     @property
     def magnitudes(self) -> tuple[Quantity, ...]:
@@ -171,6 +175,7 @@ CATALOGUE: tuple[Fault, ...] = (
         0.019,
         (ModelError(1.27, 0.0275, 8.84e-5),),
         (ModelError(1.0, 0.005, 1.29e-4),),
+        (0.15, 0.6, 1.5),
     ),
     Fault(
         "backlash",
@@ -187,6 +192,7 @@ CATALOGUE: tuple[Fault, ...] = (
         1.9e-5,
         (ModelError(2.65, 0.0225, 2.29e-7),),
         (ModelError(1.11, 0.0175, 2.29e-7),),
+        (1.0e-4, 5.0e-4, 1.0e-3),
     ),
     Fault(
         "short_circuit",
@@ -199,6 +205,7 @@ CATALOGUE: tuple[Fault, ...] = (
         0.02,
         (ModelError(2.01, 0.0125), ModelError(1.92, 0.02, 3e-5), ModelError(2.2, 0.0075)),
         (ModelError(2.07, 0.0075), ModelError(1.03, 0.0275), ModelError(2.64, 0.0, 3e-5)),
+        (0.05, 0.2, 0.35),
     ),
     Fault(
         "eccentricity",
@@ -238,6 +245,7 @@ CATALOGUE: tuple[Fault, ...] = (
         0.055,
         (ModelError(1.59, 0.02, 7.31e-5), ModelError(2.01, 0.0, 5.54e-4)),
         (ModelError(1.0, 0.0, 3.35e-4), ModelError(2.46, 0.0, 8.1e-4)),
+        (0.08, 0.3, 0.5),
     ),
 )
 
@@ -248,6 +256,39 @@ QUANTITIES: dict[str, Quantity] = {q.name: q for f in CATALOGUE for q in f.quant
 PHASES = "abc"
 #: The fault that sits on one motor phase: its isolation (which phase) is reported too.
 PHASE_FAULT = next(f.name for f in CATALOGUE if f.layout == "per_phase")
+
+#: The kernels' field of each catalogue quantity (:class:`FaultParams`; :class:`MonitorFaults`
+#: holds Z = c zeta in ``eccentricity_z``). The kernels read fault rows by position, so the
+#: structs must list these fields in the catalogue's order: :func:`check_kernel_order`.
+KERNEL_FIELD = {
+    "friction": "friction",
+    "backlash": "backlash",
+    "short_circuit_a": "short_a",
+    "short_circuit_b": "short_b",
+    "short_circuit_c": "short_c",
+    "eccentricity_zeta": "eccentricity_zeta",
+    "eccentricity_phase": "eccentricity_phase",
+}
+MONITOR_FIELD = {**KERNEL_FIELD, "eccentricity_zeta": "eccentricity_z"}
+
+
+def check_kernel_order(reference: tuple[str, ...], monitor: tuple[str, ...]) -> None:
+    """Refuse (at import) kernel fault structs whose fields are not the catalogue's
+    quantities in the catalogue's order: a fault added to one but not the other, or in
+    another place, would be read as a different fault."""
+    for struct, fields, names in (
+        ("FaultParams", reference, KERNEL_FIELD),
+        ("MonitorFaults", monitor, MONITOR_FIELD),
+    ):
+        expected = tuple(names.get(q, f"<no kernel field for {q}>") for q in QUANTITIES)
+        if tuple(fields) != expected:
+            raise ImportError(
+                f"emaprog.kernels.structs.{struct} has the fields {tuple(fields)}; "
+                f"the fault catalogue needs {expected} in this order"
+            )
+
+
+check_kernel_order(FaultParams._fields, MonitorFaults._fields)
 
 HEALTHY = FaultParams(*(q.healthy for q in QUANTITIES.values()))
 

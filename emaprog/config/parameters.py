@@ -93,6 +93,15 @@ class Sensors(_Section):
     current_range: Pos = Field(description="[A] ADC full scale (+/-)")
 
 
+class Motor(_Section):
+    """Which motor family the set describes (docs/reference.md, Parameter-set YAML): its
+    kernels, structs and tables (:mod:`emaprog.models.family`)."""
+
+    family: Literal["bldc"] = Field(
+        "bldc", description="motor family: bldc (six-step, trapezoidal back-EMF)"
+    )
+
+
 class Monitor(_Section):
     """Monitor Model equivalents; written by `emaprog calibrate`."""
 
@@ -136,7 +145,20 @@ Health = create_model(
     "Health",
     __base__=_Section,
     __module__=__name__,
-    **catalogue_fields({f.name: (Threshold, Field(description=f.severity)) for f in CATALOGUE}),
+    **catalogue_fields(
+        {
+            f.name: (
+                Threshold,
+                Field(
+                    default_factory=lambda f=f: Threshold(
+                        incipient=f.health[0], degraded=f.health[1], failure=f.health[2]
+                    ),
+                    description=f"{f.severity}; omitted: {f.health} (the catalogue's)",
+                ),
+            )
+            for f in CATALOGUE
+        }
+    ),
 )
 
 
@@ -191,6 +213,7 @@ class ParameterFile(_Section):
     description: str
     source: str = Field(description="where the values come from")
     changes: list[str] = Field(default_factory=list, description="record of tuning changes")
+    motor: Motor = Field(default_factory=Motor, description="the motor family (omitted: bldc)")
     electrical: Electrical
     mechanical: Mechanical
     controller: Controller
@@ -214,8 +237,12 @@ class Parameters(NamedTuple):
     sensors: SensorParams
 
     def values(self) -> dict:
-        """Plain values actually used (for provenance)."""
-        return self.spec.model_dump(mode="json")
+        """Plain values actually used (for provenance). A set of the first family without a
+        ``motor`` section dumps as before, so that its campaigns keep their hashes."""
+        values = self.spec.model_dump(mode="json")
+        if values.get("motor") == Motor().model_dump(mode="json"):
+            del values["motor"]
+        return values
 
     @property
     def plant(self) -> Plant:

@@ -26,10 +26,10 @@ from ..config.parameters import Parameters
 from ..config.scenario import ChirpCommand, NoLoad
 from ..faults import HEALTHY, ZETA_COLUMN, MonitorFaults, monitor_form, values_of
 from ..identification.objective import FILTER_SECONDS, STARTUP_SECONDS, low_pass
-from ..kernels.monitor import evaluate_population
-from ..kernels.structs import ErrorTarget, MonitorOptions, unit_row
 from ..models import monitor, reference
+from ..models.bldc import ErrorTarget, MonitorOptions
 from ..models.common import Inputs
+from ..models.family import family_of
 from ..numerics import DEFAULT
 
 ZETA_GRID = np.linspace(0.1, 0.8, 8)
@@ -81,10 +81,11 @@ class Fit:
     def __call__(self, rows: np.ndarray, opts: MonitorOptions) -> np.ndarray:
         """Error of each (m, 7) Monitor fault row under ``opts``."""
         p = self.params
+        family = family_of(p)
         out = np.empty(rows.shape[0])
-        evaluate_population(
+        family.evaluate_population(
             np.ascontiguousarray(rows),
-            unit_row(p.plant)[None],
+            family.unit_row(p.plant)[None],
             self.inp.drive(),
             p.plant,
             opts,

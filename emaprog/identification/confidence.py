@@ -65,7 +65,7 @@ from ..faults import (
     fault_load,
     worst_phase,
 )
-from ..kernels.structs import Plant
+from ..models.bldc import Plant
 from ..signals import correlation_length, noise_sigma
 from .objective import NUISANCE_DEFAULTS, SIGNALS, Objective, fine_plant, low_pass
 

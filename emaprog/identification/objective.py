@@ -45,17 +45,10 @@ from ..faults import (
     monitor_form,
 )
 from ..io.storage import Trace
-from ..kernels.monitor import (
-    U_HINGE_MOMENT,
-    U_PHASE_RESISTANCE,
-    evaluate_population,
-    evaluate_residuals,
-    moving_average,
-    unit_plant,
-)
-from ..kernels.structs import ErrorTarget, Plant, unit_row
 from ..models import monitor, reference
+from ..models.bldc import U_HINGE_MOMENT, U_PHASE_RESISTANCE, ErrorTarget, Plant, moving_average
 from ..models.common import Inputs, recorded_instants
+from ..models.family import family_of
 from ..numerics import DEFAULT, Numerics
 
 FILTER_SECONDS = 1e-3  # [s] moving-average window of the error function
@@ -172,7 +165,8 @@ class Objective:
         self.numerics = numerics
         self.genes = genes_of(settings)
         self.options = monitor.options(params, numerics)
-        self.units = unit_row(params.plant)[None]
+        self.family = family_of(params)
+        self.units = self.family.unit_row(params.plant)[None]
         self.eccentricity_gain = params.spec.monitor.eccentricity_gain
         # the same 1 ms filter on both grids: the Monitor's (controller rate), the recording's
         self.filter_width = max(1, round(FILTER_SECONDS * params.spec.controller.rate))
@@ -285,7 +279,7 @@ class Objective:
     def __call__(self, genes: np.ndarray) -> np.ndarray:
         rows = self.kernel_rows(genes)
         fitness = np.empty(rows.shape[0])
-        evaluate_population(
+        self.family.evaluate_population(
             rows,
             self.unit_rows(genes),
             self.inputs.drive(),
@@ -303,7 +297,7 @@ class Objective:
         the set's (e.g. unquantised feedback for finite differences)."""
         rows = self.kernel_rows(genes)
         out = np.empty((rows.shape[0], 3, self.target.current.size))
-        evaluate_residuals(
+        self.family.evaluate_residuals(
             rows,
             self.unit_rows(genes),
             self.inputs.drive(),
@@ -334,7 +328,7 @@ class Objective:
             monitor_form(values, self.eccentricity_gain),
             opts=self.options,
             hinge_moment=float(unit[U_HINGE_MOMENT]),
-            plant=unit_plant(plant if plant is not None else self.params.plant, unit),
+            plant=self.family.unit_plant(plant if plant is not None else self.params.plant, unit),
         )
 
 

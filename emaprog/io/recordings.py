@@ -382,8 +382,9 @@ def current_demand(
     The digital loops run at their own rate on the recorded command, position and
     speed (interpolated onto the controller grid) exactly as in the actuator.
     """
-    from ..kernels.control import replay_controller
+    from ..models.family import family_of
 
+    replay_controller = family_of(params).replay_controller
     rate = params.spec.controller.rate
     grid = np.arange(int(math.ceil(time[-1] * rate - 1e-9)) + 1, dtype=np.float64) / rate
     demand = np.empty(grid.size)
@@ -461,13 +462,13 @@ DISTINCT_DEG = 60.0
 
 
 def _identity_scores(
-    theta_rel: np.ndarray, currents: np.ndarray, sign: np.ndarray
+    theta_rel: np.ndarray, currents: np.ndarray, sign: np.ndarray, params: Parameters
 ) -> tuple[dict[tuple[int, ...], np.ndarray], int]:
     """Agreement of every channel permutation at every rotor angle at the first sample:
     ``{perm: (720,) share of the conducting samples}`` (perm[model winding] = channel)."""
     from itertools import permutations
 
-    from ..kernels.bldc import IDLE_PHASE, POSITIVE_PHASE
+    from ..models.family import family_of
 
     magnitude = np.abs(currents).sum(axis=0) / 2.0
     # samples carrying current and a sure torque sign: where the pair conducts, the idle
@@ -483,13 +484,12 @@ def _identity_scores(
     where = np.floor(np.mod(theta_rel[conducting], 2.0 * math.pi) / step).astype(np.int64) % bins
     histogram = np.zeros((9, bins))
     np.add.at(histogram, (3 * idle + lead, where), 1.0)
-    centre = (np.arange(bins) + 0.5) * step
-    sector = np.floor((centre + math.pi / 6.0) / (math.pi / 3.0)).astype(np.int64) % 6
-    shifted = sector[(np.arange(bins)[:, None] + np.arange(bins)[None, :]) % bins]  # [shift, bin]
+    idle_at, lead_at = family_of(params).commutation_phases((np.arange(bins) + 0.5) * step)
+    shifted = (np.arange(bins)[:, None] + np.arange(bins)[None, :]) % bins  # [shift, bin]
     scores = {}
     for perm in permutations(range(3)):
         p = np.asarray(perm)
-        code = 3 * p[IDLE_PHASE] + p[POSITIVE_PHASE]  # per model sector
+        code = 3 * p[idle_at] + p[lead_at]  # per angle bin
         scores[perm] = histogram[code[shifted], np.arange(bins)[None, :]].sum(axis=1) / count
     return scores, count
 
@@ -550,7 +550,7 @@ def phase_identity(
     pp = params.spec.electrical.pole_pairs
     theta_rel = pp * _angle(trace_columns)
     currents = np.vstack([trace_columns[k] for k in PHASE_COLUMNS])
-    scores, _ = _identity_scores(theta_rel, currents, np.sign(torque_sign))
+    scores, _ = _identity_scores(theta_rel, currents, np.sign(torque_sign), params)
     bins = next(iter(scores.values())).size
     best = max(scores, key=lambda q: (float(scores[q].max()), q == (0, 1, 2)))
     top = float(scores[best].max())

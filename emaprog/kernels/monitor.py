@@ -495,6 +495,49 @@ def _evaluate_parallel(
 
 
 @njit(cache=True)
+def simulate_units(row, units, drive, plant, options, current, position, speed):
+    """The Monitor outputs of one fault row under each unit row of ``units`` (m, 10), in one
+    call (parallel over the units): ``current``, ``position``, ``speed`` (m, n) outputs. What
+    commissioning's finite-difference Jacobian evaluates: one perturbed unit per row."""
+    _simulate_units_parallel(
+        row,
+        units,
+        drive,
+        plant.electrical,
+        plant.mechanical,
+        plant.controller,
+        plant.sensors,
+        options,
+        current,
+        position,
+        speed,
+    )
+
+
+@njit(cache=True, parallel=True)
+def _simulate_units_parallel(
+    row,
+    units,
+    drive,
+    electrical,
+    mechanical,
+    controller,
+    sensors,
+    options,
+    current,
+    position,
+    speed,
+):
+    for j in prange(units.shape[0]):
+        out = _simulate_candidate(
+            row, units[j], drive, Plant(electrical, mechanical, controller, sensors), options
+        )
+        current[j, :] = out.current
+        position[j, :] = out.position
+        speed[j, :] = out.speed
+
+
+@njit(cache=True)
 def _simulate_candidate(row, unit, drive, plant, options):
     """The Monitor outputs of one candidate row under its unit row."""
     n = drive.command.size
@@ -518,21 +561,30 @@ def _candidate_fitness(row, unit, drive, plant, options, target, norms):
     out = _simulate_candidate(row, unit, drive, plant, options)
     total = 0.0
     filtered = np.empty(n)
+    model = np.empty(target.sample_index.size)
     signals = (out.current, out.position, out.speed)
     targets = (target.current, target.position, target.speed)
     for s in range(3):
         if target.weights[s] == 0.0:
             continue
-        moving_average(signals[s], target.filter_width, filtered)
+        _filtered_at_instants(signals[s], target, filtered, model)
         acc = 0.0
         measured = targets[s]
         for k in range(measured.size):
-            i = target.sample_index[k]
-            f = target.sample_fraction[k]
-            model = filtered[i] if f == 0.0 else filtered[i] + f * (filtered[i + 1] - filtered[i])
-            acc += target.sample_weight[k] * (model - measured[k]) ** 2
+            acc += target.sample_weight[k] * (model[k] - measured[k]) ** 2
         total += target.weights[s] * acc / norms[s]
     return total
+
+
+@njit(cache=True)
+def _filtered_at_instants(signal, target, filtered, model):
+    """A Monitor signal as the error sees it: the 1 ms moving average (into ``filtered``),
+    read at the recorded instants by linear interpolation (into ``model``)."""
+    moving_average(signal, target.filter_width, filtered)
+    for k in range(model.size):
+        i = target.sample_index[k]
+        f = target.sample_fraction[k]
+        model[k] = filtered[i] if f == 0.0 else filtered[i] + f * (filtered[i + 1] - filtered[i])
 
 
 @njit(cache=True)
@@ -584,21 +636,17 @@ def _residuals_parallel(
             options,
         )
         filtered = np.empty(n)
+        model = np.empty(target.sample_index.size)
         signals = (out.current, out.position, out.speed)
         targets = (target.current, target.position, target.speed)
         for s in range(3):
             if target.weights[s] == 0.0:
                 residuals[j, s, :] = 0.0
                 continue
-            moving_average(signals[s], target.filter_width, filtered)
+            _filtered_at_instants(signals[s], target, filtered, model)
             measured = targets[s]
             scale = target.weights[s] / norms[s]
             for k in range(measured.size):
-                i = target.sample_index[k]
-                f = target.sample_fraction[k]
-                model = (
-                    filtered[i] if f == 0.0 else filtered[i] + f * (filtered[i + 1] - filtered[i])
-                )
                 residuals[j, s, k] = math.sqrt(scale * target.sample_weight[k]) * (
-                    model - measured[k]
+                    model[k] - measured[k]
                 )

@@ -1,0 +1,88 @@
+"""The layering the code relies on: kernels reached only through the motor-model contract,
+and kernel fault structs that follow the catalogue (docs/how-to/add-a-fault.md)."""
+
+from __future__ import annotations
+
+import ast
+
+import pytest
+
+from emaprog.faults import QUANTITIES, check_kernel_order
+from emaprog.kernels.structs import FaultParams, MonitorFaults
+from emaprog.models.family import MotorFamily, family_of
+
+from .conftest import ROOT
+
+PACKAGE = ROOT / "emaprog"
+#: the data layer the kernels' structs are built from (parameter sets, scenarios, the
+#: catalogue): below models/, so it may name the structs, never a kernel
+STRUCT_USERS = ("config/", "faults.py")
+
+
+def _imports(path):
+    tree = ast.parse(path.read_text())
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.module:
+            base = "." * node.level + node.module
+            yield base, [a.name for a in node.names]
+        elif isinstance(node, ast.Import):
+            for alias in node.names:
+                yield alias.name, []
+
+
+def test_no_module_above_models_imports_a_kernel():
+    """Outside models/ and kernels/, no module imports emaprog.kernels (the structs only
+    from the data layer): identification, commissioning, calibration and the recording
+    reader go through :func:`emaprog.models.family.family_of`."""
+    offenders = []
+    for path in PACKAGE.rglob("*.py"):
+        rel = path.relative_to(PACKAGE).as_posix()
+        if rel.startswith(("kernels/", "models/")):
+            continue
+        for module, names in _imports(path):
+            if "kernels" not in module.split("."):
+                continue
+            structs_only = module.endswith("kernels.structs")
+            if structs_only and rel.startswith(STRUCT_USERS):
+                continue
+            offenders.append(f"{rel}: {module} {names}")
+    assert offenders == []
+
+
+def test_the_bldc_family_satisfies_the_contract(params):
+    family = family_of(params)
+    assert isinstance(family, MotorFamily) and family.NAME == params.spec.motor.family == "bldc"
+
+
+def test_kernel_fault_structs_follow_the_catalogue():
+    """The shipped structs pass; a struct with a field out of the catalogue's order (or one
+    fault more) is refused, naming it."""
+    check_kernel_order(FaultParams._fields, MonitorFaults._fields)
+    swapped = list(FaultParams._fields)
+    swapped[0], swapped[1] = swapped[1], swapped[0]
+    with pytest.raises(ImportError, match="FaultParams"):
+        check_kernel_order(tuple(swapped), MonitorFaults._fields)
+    with pytest.raises(ImportError, match="MonitorFaults"):
+        check_kernel_order(FaultParams._fields, (*MonitorFaults._fields, "bearing_wear"))
+    assert len(QUANTITIES) == len(FaultParams._fields)
+
+
+def test_a_unit_file_without_a_faults_thresholds_still_loads(tmp_path):
+    """A parameter set written before a fault was catalogued has no health thresholds for it:
+    it loads, with the catalogue's defaults (the shipped set's), and nothing else moves."""
+    import yaml
+
+    from emaprog.config import parameters
+    from emaprog.faults import FAULTS
+
+    spec = yaml.safe_load((PACKAGE / "data" / "parameters" / "default.yaml").read_text())
+    del spec["health"]["eccentricity"]
+    path = tmp_path / "old-unit.yaml"
+    path.write_text(yaml.safe_dump(spec))
+    old = parameters.load(str(path))
+    shipped = parameters.load("default")
+    threshold = old.spec.health.eccentricity
+    assert (threshold.incipient, threshold.degraded, threshold.failure) == FAULTS[
+        "eccentricity"
+    ].health
+    assert old.spec.health == shipped.spec.health
