@@ -35,7 +35,11 @@ law the same way, on the unit basis only (twin campaigns do not estimate them), 
 (their truth is never the default), deviation from their default, their true value in the
 case row (the resistance: the unit's over the set identified with).
 
-Run: ``python benchmarks/interval_factors.py RESULTS_DIR [RESULTS_DIR ...] [--json]``.
+Run: ``python benchmarks/interval_factors.py RESULTS_DIR [RESULTS_DIR ...] [--json]
+[--write]``. With ``--write`` the proposed laws (and each basis's calibration ratio) are
+written into ``emaprog/data/model_errors.json``, with the campaigns they come from, for the
+bases the results hold; the others are kept as they are. That file is what the intervals
+read: laws are measured, never typed in.
 """
 
 from __future__ import annotations
@@ -281,11 +285,53 @@ def table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+LAWS_FILE = Path(__file__).resolve().parent.parent / "emaprog" / "data" / "model_errors.json"
+
+
+def write_laws(rows: list[dict], directories: list[Path], path: Path = LAWS_FILE) -> Path:
+    """Put the proposed laws and ratios into the laws file (module docstring); the nuisances'
+    from the unit basis. Returns the file."""
+    import datetime
+    import json
+
+    from emaprog import __version__
+
+    data = json.loads(path.read_text())
+    campaigns = []
+    for d in directories:
+        manifest = json.loads((d / "manifest.json").read_text())
+        campaigns.append(
+            f"{manifest.get('campaign_file', manifest['campaign'])} "
+            f"({manifest['planned']} cases, hash {manifest['content_hash'][:12]})"
+        )
+    for row in rows:
+        basis, name = row["basis"], row["quantity"]
+        if name in NUISANCE_DEFAULTS:
+            if basis != "unit":
+                continue
+            basis = "nuisance"
+        data["laws"][basis][name] = [float(x) for x in row["proposed"]]
+        if basis != "nuisance":
+            data["mismatch_ratio"][basis] = float(f"{row['ratio_ref']:.4g}")
+        data["provenance"][basis] = (
+            f"benchmarks/interval_factors.py on {', '.join(campaigns)}; emaprog "
+            f"{__version__}, {datetime.date.today().isoformat()}"
+        )
+    path.write_text(json.dumps(data, indent=2) + "\n")
+    return path
+
+
 def main(argv: list[str] | None = None) -> int:
     cli = parser(__doc__)
     cli.add_argument("results", nargs="+", type=Path, help="sweep results directories")
+    cli.add_argument(
+        "--write", action="store_true", help=f"write the proposed laws into {LAWS_FILE.name}"
+    )
     args = cli.parse_args(argv)
-    return finish(calibrate(args.results), table, args.json)
+    rows = calibrate(args.results)
+    if args.write:
+        print(f"laws written: {write_laws(rows, args.results)}")
+    return finish(rows, table, args.json)
 
 
 if __name__ == "__main__":

@@ -59,6 +59,7 @@ import numpy as np
 from ..faults import (
     CATALOGUE,
     FAULTS,
+    MODEL_ERRORS,
     PHASE_FAULT,
     QUANTITIES,
     ModelError,
@@ -119,10 +120,7 @@ STEP_SHARE = 2e-3
 #: the linearised error alone held the true hinge moment in 21 % of them and the resistance
 #: factor in 44 %; the commissioned set's own errors, e.g. in k_e, scale both), used for twin
 #: experiments too (which estimate nuisances only when asked).
-NUISANCE_ERROR = {
-    "hinge_moment": ModelError(2.98, 0.0225, 0.0405),
-    "resistance_factor": ModelError(14.1),
-}
+NUISANCE_ERROR = {q: ModelError(*law) for q, law in MODEL_ERRORS["laws"]["nuisance"].items()}
 #: The fault quantities' laws for a unit identified against a set that was not fitted to it
 #: (:func:`basis_of` "shipped": the shipped set on a real actuator), calibrated like the
 #: others on ``campaigns/calibration-uncommissioned.yaml`` (400 spread units, no
@@ -131,13 +129,7 @@ NUISANCE_ERROR = {
 #: friction 88 %, backlash 94 %, short circuit 92-96 %, zeta 94 %, phase 91 %. Wide: a unit
 #: whose set is not its own reads its inertia and friction mismatch as faults.
 SHIPPED_ERROR: dict[str, ModelError] = {
-    "friction": ModelError(7.29, 0.0175, 0.00701),
-    "backlash": ModelError(2.41, 0.0325, 5.92e-7),
-    "short_circuit_a": ModelError(6.35, 0.0, 0.00288),
-    "short_circuit_b": ModelError(6.07, 0.1, 0.00163),
-    "short_circuit_c": ModelError(7.64, 0.1, 0.00111),
-    "eccentricity_zeta": ModelError(0.605, 0.06, 0.00153),
-    "eccentricity_phase": ModelError(1.59, 0.0, 0.00448),
+    q: ModelError(*law) for q, law in MODEL_ERRORS["laws"]["shipped"].items()
 }
 
 
@@ -308,7 +300,7 @@ def quantity_error(name: str, basis: str | bool = "unit") -> ModelError:
 #: ``sqrt(ratio / MISMATCH_RATIO)`` (:func:`mismatch_widening`). Measured on twins driven by a
 #: 0.05 rad step (campaigns/off-calibration/step.yaml, fit ratio median 31): the friction
 #: interval held its truth in 67 % of the conclusive cases before.
-MISMATCH_RATIO = {"twin": 3.72, "unit": 11.72, "shipped": 211.5}
+MISMATCH_RATIO: dict[str, float] = dict(MODEL_ERRORS["mismatch_ratio"])
 
 
 def mismatch_widening(ratio: float, basis: str) -> float:
