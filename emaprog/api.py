@@ -34,7 +34,7 @@ from .errors import InputError
 from .faults import PHASE_FAULT, QUANTITIES, flatten, nested
 from .identification import check_sampling, identify_trace
 from .identification import result as verdicts
-from .identification.confidence import confidence_record, named_phase
+from .identification.confidence import confidence_record
 from .identification.defaults import resolve as resolve_settings
 from .identification.objective import low_pass
 from .io.recordings import check_at_rest, check_plausible
@@ -378,6 +378,58 @@ def commission(
     )
 
 
+class Sources(NamedTuple):
+    """What an identification reads: the trace, where it came from, the scenarios and the set."""
+
+    measured: Trace
+    source: str | Path
+    chosen: Scenario | None  # the --scenario
+    embedded: Scenario | None  # the scenario the trace carries (a simulated trace)
+    params: Parameters
+
+
+def resolve_sources(
+    trace: str | Path | pd.DataFrame,
+    *,
+    scenario: str | Path | None = None,
+    parameters: str | Path | None = None,
+    columns: str | Path | None = None,
+) -> Sources:
+    """The trace, scenarios and parameter set of an identification, each loaded once.
+
+    The parameter set: ``parameters`` when given (it overrides), else the ``scenario``'s (its
+    path relative to the scenario file), else the one the trace was simulated with (found
+    from any folder, else relative to the trace's), else ``default``. A recording read
+    through ``columns`` is read with that same set (its controller signs a current built
+    from phase currents; its scenario places a missing command)."""
+    chosen = load_scenario(scenario) if scenario is not None else None
+    chosen_set = (
+        _parameters(parameters, chosen.parameters, Path(str(scenario)).parent, str(scenario))
+        if chosen is not None
+        else None
+    )
+    replayed = None
+    if isinstance(trace, pd.DataFrame):
+        source: str | Path = "trace (DataFrame)"
+        measured = trace_of(trace, source)
+    else:
+        source = Path(trace)
+        if columns is not None:
+            replayed = chosen_set or _parameters(parameters, None, None, "--parameters")
+        measured = _measured(source, columns, replayed, chosen)
+    embedded = _trace_scenario(measured, source)
+    params = chosen_set or replayed
+    if params is None:
+        relative = source.parent if isinstance(source, Path) else None
+        params = _parameters(
+            parameters,
+            _trace_set(measured, embedded, relative),
+            relative,
+            f"{source} (embedded scenario)",
+        )
+    return Sources(measured, source, chosen, embedded, params)
+
+
 def identify(
     trace: str | Path | pd.DataFrame,
     *,
@@ -407,36 +459,10 @@ def identify(
     """
     if output is not None:
         writable_output(output, "folder", force, protected=REPORT_FILES)
-    chosen = load_scenario(scenario) if scenario is not None else None
-    if isinstance(trace, pd.DataFrame):
-        source: str | Path = "trace (DataFrame)"
-        measured = trace_of(trace, source)
-    else:
-        source = Path(trace)
-        replayed = None  # the set whose controller signs a current built from phase currents
-        if columns is not None:
-            replayed = (
-                _parameters(
-                    parameters, chosen.parameters, Path(str(scenario)).parent, str(scenario)
-                )
-                if chosen is not None
-                else _parameters(parameters, None, None, "--parameters")
-            )
-        measured = _measured(source, columns, replayed, chosen)
-    embedded = _trace_scenario(measured, source)
+    measured, source, chosen, embedded, params = resolve_sources(
+        trace, scenario=scenario, parameters=parameters, columns=columns
+    )
     basis = chosen or embedded
-    if chosen is not None:
-        params = _parameters(
-            parameters, chosen.parameters, Path(str(scenario)).parent, str(scenario)
-        )
-    else:
-        relative = source.parent if isinstance(source, Path) else None
-        params = _parameters(
-            parameters,
-            _trace_set(measured, embedded, relative),
-            relative,
-            f"{source} (embedded scenario)",
-        )
     resolved = resolve_settings(
         basis.identify if basis is not None else IdentifySettings(),
         measured.metadata,
@@ -457,15 +483,10 @@ def identify(
     )
 
     truth = flatten(embedded.faults) if embedded is not None else None
-    error = verdicts.errors(result.estimate, truth) if truth is not None else None
-    health = verdicts.health(
-        result.estimate, settings.estimate, params, result.confidence.inconclusive
-    )
-    flagged = health.get(PHASE_FAULT) in ("incipient", "degraded")
+    verdict = verdicts.judge(result, settings.estimate, params, truth)
+    health, error, phase = verdict.health, verdict.error, verdict.phase
     confidence = confidence_record(result.confidence)
-    if not flagged:  # a phase is named, with its confidence, only beside a flagged short
-        confidence["isolation"] = None
-    phase = named_phase(result.estimate, flagged, result.confidence.isolation)
+    confidence["isolation"] = verdict.isolation
     data = {
         "estimate": nested(result.estimate),
         "truth": nested(truth) if truth is not None else None,

@@ -24,6 +24,13 @@ def time_grid(duration: float, rate: float) -> np.ndarray:
     return np.arange(n, dtype=np.float64) / rate
 
 
+def covering_grid(last: float, rate: float) -> np.ndarray:
+    """The controller grid ``0, 1/rate, ...`` that covers a recording's last instant ``last``
+    [s after its first sample] (the models run on it; recorded instants fall between)."""
+    n = int(math.ceil(last * rate - 1e-9)) + 1
+    return np.arange(n, dtype=np.float64) / rate
+
+
 def chirp(t: np.ndarray, amplitude: float, f0: float, f1: float, duration: float) -> np.ndarray:
     """Linear chirp ``A sin(2 pi (f0 t + (f1 - f0) t^2 / (2 T)))`` [rad].
 

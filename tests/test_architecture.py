@@ -86,3 +86,38 @@ def test_a_unit_file_without_a_faults_thresholds_still_loads(tmp_path):
         "eccentricity"
     ].health
     assert old.spec.health == shipped.spec.health
+
+
+def test_scenario_and_parameter_set_resolution(tmp_path):
+    """Which set an identification uses, in one function (emaprog.api.resolve_sources):
+    ``--parameters`` overrides; else the ``--scenario``'s, relative to the scenario file; else
+    the set the trace was simulated with, found from any folder; else ``default``."""
+    import shutil
+
+    import yaml
+
+    import emaprog
+    from emaprog.api import resolve_sources
+
+    unit = yaml.safe_load((PACKAGE / "data" / "parameters" / "default.yaml").read_text())
+    unit["name"] = "unit-7"
+    unit["mechanical"]["motor_inertia"] *= 1.05
+    (tmp_path / "sets").mkdir()
+    (tmp_path / "sets" / "unit-7.yaml").write_text(yaml.safe_dump(unit))
+    scenario = yaml.safe_load((ROOT / "configs" / "chirp-nominal.yaml").read_text())
+    scenario.update(parameters="sets/unit-7.yaml", duration=0.05)
+    (tmp_path / "run.yaml").write_text(yaml.safe_dump(scenario))
+    trace = tmp_path / "traces" / "run.parquet"
+    trace.parent.mkdir()
+    emaprog.simulate(tmp_path / "run.yaml", output=trace)
+    moved = tmp_path / "elsewhere" / "run.parquet"
+    moved.parent.mkdir()
+    shutil.copy(trace, moved)
+
+    assert resolve_sources(moved).params.spec.name == "unit-7"  # the trace's own set
+    with_scenario = resolve_sources(moved, scenario=ROOT / "configs" / "chirp-nominal.yaml")
+    assert with_scenario.params.spec.name == "default" and with_scenario.chosen is not None
+    assert resolve_sources(moved, parameters="default").params.spec.name == "default"
+    frame = emaprog.simulate(ROOT / "configs" / "chirp-nominal.yaml")
+    assert resolve_sources(frame).params.spec.name == "default"
+    assert resolve_sources(moved).embedded is not None

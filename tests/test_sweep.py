@@ -222,12 +222,14 @@ def test_a_failing_case_is_recorded_and_retried_on_resume(tiny, tmp_path, monkey
             raise FloatingPointError("diverged")
         return real(spec)
 
-    monkeypatch.setattr(campaigns, "run_case", broken)
+    from emaprog.campaign import execution  # where run_case_safely looks run_case up
+
+    monkeypatch.setattr(execution, "run_case", broken)
     first = api.sweep(path, tmp_path / "fail", workers=1, show_progress=False)
     assert first.failed == 1 and first.summary["finished"] == 7
     record = json.loads((tmp_path / "fail" / "failures" / "case-000003.json").read_text())
     assert "FloatingPointError: diverged" in record["error"] and "Traceback" in record["traceback"]
-    monkeypatch.setattr(campaigns, "run_case", real)
+    monkeypatch.setattr(execution, "run_case", real)
     second = api.sweep(path, tmp_path / "fail", workers=1, resume=True, show_progress=False)
     assert second.ran == 1 and second.failed == 0
     assert not (tmp_path / "fail" / "failures" / "case-000003.json").exists()

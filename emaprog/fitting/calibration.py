@@ -25,7 +25,7 @@ from .. import signals
 from ..config.parameters import Parameters
 from ..config.scenario import ChirpCommand, NoLoad
 from ..faults import HEALTHY, ZETA_COLUMN, MonitorFaults, monitor_form, values_of
-from ..identification.objective import FILTER_SECONDS, STARTUP_SECONDS, low_pass
+from ..identification.objective import STARTUP_SECONDS, filter_width, low_pass
 from ..models import monitor, reference
 from ..models.bldc import ErrorTarget, MonitorOptions
 from ..models.common import Inputs
@@ -62,7 +62,7 @@ class Fit:
     def __init__(self, params: Parameters, inp: Inputs, reference_current: np.ndarray):
         self.params, self.inp = params, inp
         rate = params.spec.controller.rate
-        width = max(1, round(FILTER_SECONDS * rate))
+        width = filter_width(rate)
         current = low_pass(reference_current, width)
         sample_weight = np.ones_like(current)
         sample_weight[: round(STARTUP_SECONDS * rate)] = 0.0
@@ -153,7 +153,7 @@ def fit_eccentricity(
 def signature_errors(
     params: Parameters, inp: Inputs, opts: MonitorOptions, gain: float
 ) -> dict[str, float]:
-    width = max(1, round(FILTER_SECONDS * params.spec.controller.rate))
+    width = filter_width(params.spec.controller.rate)
     skip = round(STARTUP_SECONDS * params.spec.controller.rate)
     ref0, _ = reference.run(params, inp, HEALTHY, with_noise=False)
     mon0 = monitor.run(params, inp, MONITOR_HEALTHY, opts=opts)

@@ -39,9 +39,9 @@ from ..errors import InputError
 from ..faults import healthy_values, monitor_form
 from ..identification.confidence import correlation_length, information_inverse
 from ..identification.objective import (
-    FILTER_SECONDS,
     STARTUP_SECONDS,
     filter_lag,
+    filter_width,
     fine_plant,
     low_pass,
 )
@@ -177,9 +177,9 @@ def prepare(trace: Trace, source: str, params: Parameters) -> Recording:
         )
     rate = params.spec.controller.rate
     inputs = inputs_from_trace(trace, params)
-    width_model = max(1, round(FILTER_SECONDS * rate))
+    width_model = filter_width(rate)
     recording_rate = trace.sample_rate
-    width = max(1, round(FILTER_SECONDS * recording_rate))
+    width = filter_width(recording_rate)
     instants = recorded_instants(
         trace.time, inputs.time, filter_lag(width_model, rate) - filter_lag(width, recording_rate)
     )
@@ -206,7 +206,7 @@ class _Problem:
         self.family = family_of(params)
         self.options = monitor.options(params)._replace(substeps=FIT_SUBSTEPS)
         self.faults = monitor_form(healthy_values(), params.spec.monitor.eccentricity_gain)
-        self.width = max(1, round(FILTER_SECONDS * params.spec.controller.rate))
+        self.width = filter_width(params.spec.controller.rate)
         m = params.spec.mechanical
         self.base_ratio = m.static_friction / m.dynamic_friction
         self.blocks = [int(r.mask.sum()) for r in recordings for _ in range(3)]

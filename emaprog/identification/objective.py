@@ -109,6 +109,12 @@ def low_pass(x: np.ndarray, width: int) -> np.ndarray:
     return out
 
 
+def filter_width(rate: float) -> int:
+    """Samples of the error's moving average at ``rate`` [Hz]: :data:`FILTER_SECONDS`, at least
+    one (the same window on the Monitor's grid and on a recording's)."""
+    return max(1, round(FILTER_SECONDS * rate))
+
+
 def filter_lag(width: int, rate: float) -> float:
     """How far before its sample the centred ``width``-sample moving average is centred [s]."""
     return 0.5 / rate if width % 2 == 0 else 0.0
@@ -169,9 +175,9 @@ class Objective:
         self.units = self.family.unit_row(params.plant)[None]
         self.eccentricity_gain = params.spec.monitor.eccentricity_gain
         # the same 1 ms filter on both grids: the Monitor's (controller rate), the recording's
-        self.filter_width = max(1, round(FILTER_SECONDS * params.spec.controller.rate))
+        self.filter_width = filter_width(params.spec.controller.rate)
         recording_rate = trace.sample_rate
-        self.measured_width = max(1, round(FILTER_SECONDS * recording_rate))
+        self.measured_width = filter_width(recording_rate)
         # A moving average over an even number of samples is centred half a sample early:
         # read the Monitor where its filtered value stands for the same instant as the
         # measurement's (no shift when both grids are the same).

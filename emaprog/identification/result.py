@@ -3,9 +3,13 @@
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING, NamedTuple
 
 from ..config.parameters import Parameters
-from ..faults import CATALOGUE, severity
+from ..faults import CATALOGUE, PHASE_FAULT, severity
+
+if TYPE_CHECKING:
+    from .run import Identification
 
 VERDICTS = ("nominal", "incipient", "degraded", "inconclusive")
 
@@ -47,3 +51,35 @@ def errors(estimate: dict[str, float], truth: dict[str, float]) -> dict[str, flo
             else:
                 out[q.name] = estimate[q.name] - truth[q.name]
     return out
+
+
+class Verdict(NamedTuple):
+    """What one identification concludes, the same for a report and a campaign row."""
+
+    health: dict[str, str]  # per estimated fault (:data:`VERDICTS`)
+    error: dict[str, float | None] | None  # estimate - truth per quantity (a twin), else None
+    phase: str | None  # the short-circuit phase named faulty, or None
+    isolation: dict | None  # its confidence against the runner-up, only beside a flagged short
+
+
+def judge(
+    result: Identification,
+    estimated: list[str],
+    params: Parameters,
+    truth: dict[str, float] | None = None,
+) -> Verdict:
+    """The :class:`Verdict` of an identification: health per estimated fault under the set's
+    thresholds (``inconclusive`` where the recording cannot tell), the error against a known
+    truth, and the faulty phase with its confidence only beside a flagged short circuit
+    (:func:`~emaprog.identification.confidence.named_phase`)."""
+    from .confidence import named_phase
+
+    verdicts = health(result.estimate, estimated, params, result.confidence.inconclusive)
+    flagged = verdicts.get(PHASE_FAULT) in ("incipient", "degraded")
+    isolation = result.confidence.isolation if flagged else None
+    return Verdict(
+        verdicts,
+        errors(result.estimate, truth) if truth is not None else None,
+        named_phase(result.estimate, flagged, result.confidence.isolation),
+        isolation,
+    )

@@ -46,7 +46,7 @@ from .. import __version__
 from ..config.parameters import Parameters
 from ..config.yamlfile import load_mapping
 from ..errors import InputError, from_validation_error
-from ..signals import command_start, head_samples
+from ..signals import command_start, covering_grid, head_samples
 from .dialects import CsvOptions, read_text_table, unit_of
 from .storage import COLUMNS, Trace, check_columns
 
@@ -386,7 +386,7 @@ def current_demand(
 
     replay_controller = family_of(params).replay_controller
     rate = params.spec.controller.rate
-    grid = np.arange(int(math.ceil(time[-1] * rate - 1e-9)) + 1, dtype=np.float64) / rate
+    grid = covering_grid(float(time[-1]), rate)
     demand = np.empty(grid.size)
     replay_controller(
         np.interp(grid, time, command),

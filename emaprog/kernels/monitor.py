@@ -451,47 +451,7 @@ def evaluate_population(faults, units, drive, plant, options, target, fitness):
         ``sum_s w_s ||lp(MM_s) - target_s||^2 / ||target_s||^2``, both norms
         weighted sample by sample with ``target.sample_weight``.
     """
-    # numba's parallel loop takes flat tuples only: hand it the plant's parts
-    _evaluate_parallel(
-        faults,
-        units,
-        drive,
-        plant.electrical,
-        plant.mechanical,
-        plant.controller,
-        plant.sensors,
-        options,
-        target,
-        _target_norms(target),
-        fitness,
-    )
-
-
-@njit(cache=True, parallel=True)
-def _evaluate_parallel(
-    faults,
-    units,
-    drive,
-    electrical,
-    mechanical,
-    controller,
-    sensors,
-    options,
-    target,
-    norms,
-    fitness,
-):
-    shared = units.shape[0] == 1
-    for j in prange(faults.shape[0]):
-        fitness[j] = _candidate_fitness(
-            faults[j],
-            units[0] if shared else units[j],
-            drive,
-            Plant(electrical, mechanical, controller, sensors),
-            options,
-            target,
-            norms,
-        )
+    _evaluate(faults, units, drive, plant, options, target, fitness, np.empty((0, 3, 0)))
 
 
 @njit(cache=True)
@@ -555,28 +515,6 @@ def _simulate_candidate(row, unit, drive, plant, options):
 
 
 @njit(cache=True)
-def _candidate_fitness(row, unit, drive, plant, options, target, norms):
-    """One candidate of :func:`evaluate_population`: run the Monitor, weigh its error."""
-    n = drive.command.size
-    out = _simulate_candidate(row, unit, drive, plant, options)
-    total = 0.0
-    filtered = np.empty(n)
-    model = np.empty(target.sample_index.size)
-    signals = (out.current, out.position, out.speed)
-    targets = (target.current, target.position, target.speed)
-    for s in range(3):
-        if target.weights[s] == 0.0:
-            continue
-        _filtered_at_instants(signals[s], target, filtered, model)
-        acc = 0.0
-        measured = targets[s]
-        for k in range(measured.size):
-            acc += target.sample_weight[k] * (model[k] - measured[k]) ** 2
-        total += target.weights[s] * acc / norms[s]
-    return total
-
-
-@njit(cache=True)
 def _filtered_at_instants(signal, target, filtered, model):
     """A Monitor signal as the error sees it: the 1 ms moving average (into ``filtered``),
     read at the recorded instants by linear interpolation (into ``model``)."""
@@ -596,7 +534,13 @@ def evaluate_residuals(faults, units, drive, plant, options, target, residuals):
     sum over (s, k) is the candidate's fitness of :func:`evaluate_population` (a
     zero-weight signal's rows are 0). For least-squares polishing and Jacobians.
     """
-    _residuals_parallel(
+    _evaluate(faults, units, drive, plant, options, target, np.empty(faults.shape[0]), residuals)
+
+
+@njit(cache=True)
+def _evaluate(faults, units, drive, plant, options, target, fitness, residuals):
+    """:func:`_batch_parallel` with the plant in parts (numba's parallel loop takes flat tuples)."""
+    _batch_parallel(
         faults,
         units,
         drive,
@@ -607,12 +551,13 @@ def evaluate_residuals(faults, units, drive, plant, options, target, residuals):
         options,
         target,
         _target_norms(target),
+        fitness,
         residuals,
     )
 
 
 @njit(cache=True, parallel=True)
-def _residuals_parallel(
+def _batch_parallel(
     faults,
     units,
     drive,
@@ -623,9 +568,15 @@ def _residuals_parallel(
     options,
     target,
     norms,
+    fitness,
     residuals,
 ):
+    """The one evaluation of a batch of candidates: each candidate's Monitor run, its
+    signals filtered and read at the recorded instants, then either its fitness (into
+    ``fitness``) or, when ``residuals`` has rows, its weighted residual vector. numba's
+    parallel loop takes flat tuples only: the plant comes in parts."""
     shared = units.shape[0] == 1
+    with_residuals = residuals.shape[0] > 0
     n = drive.command.size
     for j in prange(faults.shape[0]):
         out = _simulate_candidate(
@@ -639,14 +590,23 @@ def _residuals_parallel(
         model = np.empty(target.sample_index.size)
         signals = (out.current, out.position, out.speed)
         targets = (target.current, target.position, target.speed)
+        total = 0.0
         for s in range(3):
             if target.weights[s] == 0.0:
-                residuals[j, s, :] = 0.0
+                if with_residuals:
+                    residuals[j, s, :] = 0.0
                 continue
             _filtered_at_instants(signals[s], target, filtered, model)
             measured = targets[s]
-            scale = target.weights[s] / norms[s]
-            for k in range(measured.size):
-                residuals[j, s, k] = math.sqrt(scale * target.sample_weight[k]) * (
-                    model[k] - measured[k]
-                )
+            if with_residuals:
+                scale = target.weights[s] / norms[s]
+                for k in range(measured.size):
+                    residuals[j, s, k] = math.sqrt(scale * target.sample_weight[k]) * (
+                        model[k] - measured[k]
+                    )
+            else:
+                acc = 0.0
+                for k in range(measured.size):
+                    acc += target.sample_weight[k] * (model[k] - measured[k]) ** 2
+                total += target.weights[s] * acc / norms[s]
+        fitness[j] = total

@@ -101,8 +101,7 @@ def inputs_from_trace(trace, params: Parameters, load_spec=None) -> Inputs:
     """
     rate = params.spec.controller.rate
     t_rec = np.asarray(trace.time, dtype=np.float64) - float(trace.time[0])
-    n = int(math.ceil(t_rec[-1] * rate - 1e-9)) + 1
-    grid = np.arange(n, dtype=np.float64) / rate
+    grid = signals.covering_grid(float(t_rec[-1]), rate)
     command = np.asarray(trace["command"], dtype=np.float64)
     if grid.size == t_rec.size and np.allclose(grid, t_rec, rtol=0.0, atol=1e-9 / rate):
         grid, command = t_rec, np.ascontiguousarray(command)
