@@ -749,6 +749,7 @@ def _read_baseline(path: Path) -> dict:
 def sweep(
     campaign_path: str | Path,
     output: str | Path | None = None,
+    *,
     workers: int | None = None,
     scheduler: str | None = None,
     resume: bool = False,
@@ -928,6 +929,7 @@ class Trend:
 def trend(
     history_path: str | Path,
     output: str | Path | None = None,
+    *,
     simulate: bool = False,
     law: str = "auto",
     parameters: str = "default",

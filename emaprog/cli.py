@@ -410,7 +410,14 @@ def trend(
     from . import api
 
     result = api.trend(
-        history, output, simulate, law, parameters, workers, resume, show_progress=True
+        history,
+        output,
+        simulate=simulate,
+        law=law,
+        parameters=parameters,
+        workers=workers,
+        resume=resume,
+        show_progress=True,
     )
     for fault, entry in result.faults.items():
         rul = entry["rul"]
@@ -448,7 +455,15 @@ def sweep(
     """Run a Monte-Carlo campaign of simulate + identify cases (resumable)."""
     from . import api
 
-    outcome = api.sweep(campaign, output, workers, scheduler, resume, baseline, show_progress=True)
+    outcome = api.sweep(
+        campaign,
+        output,
+        workers=workers,
+        scheduler=scheduler,
+        resume=resume,
+        baseline=baseline,
+        show_progress=True,
+    )
     s = outcome.summary
     typer.echo(
         f"cases: {s['finished']} of {s['planned']} finished ({outcome.ran} run now, "

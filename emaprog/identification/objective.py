@@ -361,10 +361,33 @@ def fine_plant(plant: Plant) -> Plant:
     )
 
 
-#: Nominal discrepancies already computed in this process, by set, inputs and numerics: the
-#: cases of a campaign on one set and one command share theirs (a Reference run each).
-_DISCREPANCIES: dict[str, dict[str, np.ndarray]] = {}
-_DISCREPANCIES_KEPT = 8
+class DiscrepancyCache:
+    """Nominal discrepancies already computed in this process, by set, inputs and numerics:
+    the cases of a campaign on one set and one command share theirs (a Reference run each).
+    At most ``kept`` entries (the oldest goes first), read-only arrays; :meth:`clear` empties
+    it (tests, long-lived services)."""
+
+    def __init__(self, kept: int = 8):
+        self.kept = kept
+        self._found: dict[str, dict[str, np.ndarray]] = {}
+
+    def get(self, key: str, compute) -> dict[str, np.ndarray]:
+        """The entry under ``key``, made by ``compute()`` the first time."""
+        if key not in self._found:
+            found = compute()
+            for array in found.values():
+                array.setflags(write=False)
+            if len(self._found) >= self.kept:
+                self._found.pop(next(iter(self._found)))
+            self._found[key] = found
+        return self._found[key]
+
+    def clear(self) -> None:
+        self._found.clear()
+
+
+#: The process's cache of nominal discrepancies (:func:`nominal_discrepancy`).
+DISCREPANCIES = DiscrepancyCache()
 
 
 def _discrepancy_key(inputs: Inputs, params: Parameters, numerics: Numerics) -> str:
@@ -383,17 +406,13 @@ def nominal_discrepancy(
     Kept per process (read-only arrays) for the next identification with the same set,
     inputs and numerics.
     """
-    key = _discrepancy_key(inputs, params, numerics)
-    if key not in _DISCREPANCIES:
+
+    def compute() -> dict[str, np.ndarray]:
         ref, _ = reference.run(params, inputs, HEALTHY, with_noise=False, numerics=numerics)
         mon = monitor.run(params, inputs, monitor_form(healthy_values(), 1.0), numerics)
-        found = {name: ref[name] - mon[name] for name in SIGNALS}
-        for array in found.values():
-            array.setflags(write=False)
-        if len(_DISCREPANCIES) >= _DISCREPANCIES_KEPT:
-            _DISCREPANCIES.pop(next(iter(_DISCREPANCIES)))
-        _DISCREPANCIES[key] = found
-    return _DISCREPANCIES[key]
+        return {name: ref[name] - mon[name] for name in SIGNALS}
+
+    return DISCREPANCIES.get(_discrepancy_key(inputs, params, numerics), compute)
 
 
 def reference_correction(
