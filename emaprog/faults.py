@@ -323,15 +323,95 @@ def flatten(faults) -> dict[str, float]:
     return out
 
 
+def uniform_value(dist, u: float, healthy_value: float) -> float:
+    """``u`` in [0, 1) on a ``{uniform: [lo, hi]}`` distribution; the healthy value without one."""
+    if dist is None:
+        return healthy_value
+    lo, hi = dist.uniform
+    return float(lo + u * (hi - lo))
+
+
+class ScalarLayout:
+    """One number (``friction: 1.8``): one campaign draw, grows by the severity itself."""
+
+    name = "scalar"
+
+    def draw(self, rng: np.random.Generator) -> tuple:
+        return (rng.random(),)
+
+    def sampled(self, fault: Fault, dist, draws: tuple) -> Any:
+        return uniform_value(dist, draws[0], fault.quantities[0].healthy)
+
+    def grown(self, fault: Fault, level: float, growth, limit: float) -> Any:
+        (q,) = fault.quantities
+        return min(q.healthy + level, q.upper)
+
+    def nested(self, fault: Fault, values: dict[str, float]) -> Any:
+        return values[fault.quantities[0].name]
+
+
+class PerPhaseLayout:
+    """One fraction per motor phase (``short_circuit: {a: 0.2}``): a phase and a fraction are
+    drawn; the growth law raises its phase's fraction."""
+
+    name = "per_phase"
+
+    def draw(self, rng: np.random.Generator) -> tuple:
+        return int(rng.integers(3)), rng.random()  # phase, fraction
+
+    def sampled(self, fault: Fault, dist, draws: tuple) -> Any:
+        value = {q.key: q.healthy for q in fault.quantities}
+        if dist is not None:
+            phase = PHASES[draws[0]] if dist.phase == "any" else dist.phase
+            value[phase] = uniform_value(dist.fraction, draws[1], 0.0)
+        return value
+
+    def grown(self, fault: Fault, level: float, growth, limit: float) -> Any:
+        value = {q.key: q.healthy for q in fault.quantities}
+        if growth is not None:
+            value[growth.phase] = min(level, limit)
+        return value
+
+    def nested(self, fault: Fault, values: dict[str, float]) -> Any:
+        return {q.key: values[q.name] for q in fault.quantities}
+
+
+class PolarLayout(PerPhaseLayout):
+    """A magnitude and an angle (``eccentricity: {zeta: 0.2, phase: 0}``): both drawn; the
+    growth law raises the magnitude at its angle."""
+
+    name = "polar"
+
+    def draw(self, rng: np.random.Generator) -> tuple:
+        return rng.random(), rng.random()  # magnitude, angle
+
+    def sampled(self, fault: Fault, dist, draws: tuple) -> Any:
+        magnitude, angle = fault.quantities
+        if dist is None:
+            return {q.key: q.healthy for q in fault.quantities}
+        return {
+            magnitude.key: uniform_value(dist.zeta, draws[0], magnitude.healthy),
+            angle.key: uniform_value(dist.phase, draws[1], angle.healthy),
+        }
+
+    def grown(self, fault: Fault, level: float, growth, limit: float) -> Any:
+        magnitude, angle = fault.quantities
+        if growth is None:
+            return {q.key: q.healthy for q in fault.quantities}
+        return {magnitude.key: min(level, limit), angle.key: growth.angle}
+
+
+#: Each layout's behaviour: campaign draws, sampled and grown values, the report's shape.
+LAYOUTS: dict[str, ScalarLayout | PerPhaseLayout | PolarLayout] = {
+    "scalar": ScalarLayout(),
+    "per_phase": PerPhaseLayout(),
+    "polar": PolarLayout(),
+}
+
+
 def nested(values: dict[str, Any]) -> dict:
     """The report's shape (docs/reference.md, Identification report) (``{"short_circuit": {"a": ..}, ...}``) from flat quantities."""
-    out: dict[str, Any] = {}
-    for fault in CATALOGUE:
-        if fault.layout == "scalar":
-            out[fault.name] = values[fault.quantities[0].name]
-        else:
-            out[fault.name] = {q.key: values[q.name] for q in fault.quantities}
-    return out
+    return {fault.name: LAYOUTS[fault.layout].nested(fault, values) for fault in CATALOGUE}
 
 
 def flat_from_nested(estimate: dict) -> dict[str, float]:

@@ -13,8 +13,8 @@ from ..config.parameters import Parameters
 from ..config.scenario import SPREAD_PARAMETERS, Campaign, Faults, IdentifySettings, Scenario
 from ..faults import (
     CATALOGUE,
-    PHASES,
-    Fault,
+    LAYOUTS,
+    uniform_value,
 )
 
 SEED_LIMIT = 2**32  # scenario and GA seeds are uint32
@@ -46,40 +46,6 @@ def identify_settings(campaign: Campaign, base: Scenario) -> IdentifySettings:
     return campaign.identify if "identify" in campaign.model_fields_set else base.identify
 
 
-def _draw(layout: str, rng: np.random.Generator) -> tuple:
-    """The uniform draws of one fault, by layout (every draw made, used or not)."""
-    if layout == "scalar":
-        return (rng.random(),)
-    if layout == "per_phase":
-        return int(rng.integers(3)), rng.random()  # phase, fraction
-    return rng.random(), rng.random()  # polar: magnitude, angle
-
-
-def _scaled(dist, u: float, healthy_value: float) -> float:
-    if dist is None:
-        return healthy_value
-    lo, hi = dist.uniform
-    return float(lo + u * (hi - lo))
-
-
-def _fault_value(fault: Fault, dist, draws: tuple):
-    """A fault's YAML value from its distribution (``None``: healthy) and its draws."""
-    if fault.layout == "scalar":
-        return _scaled(dist, draws[0], fault.quantities[0].healthy)
-    value = {q.key: q.healthy for q in fault.quantities}
-    if dist is None:
-        return value
-    if fault.layout == "per_phase":
-        phase = PHASES[draws[0]] if dist.phase == "any" else dist.phase
-        value[phase] = _scaled(dist.fraction, draws[1], 0.0)
-        return value
-    magnitude, angle = fault.quantities
-    return {
-        magnitude.key: _scaled(dist.zeta, draws[0], magnitude.healthy),
-        angle.key: _scaled(dist.phase, draws[1], angle.healthy),
-    }
-
-
 def sample_case(campaign: Campaign, case_id: int) -> tuple[bool, Faults, int, int]:
     """Draw case ``case_id``'s faults, Reference noise seed and GA seed.
 
@@ -90,12 +56,12 @@ def sample_case(campaign: Campaign, case_id: int) -> tuple[bool, Faults, int, in
     rng = np.random.default_rng(np.random.SeedSequence(campaign.seed, spawn_key=(case_id,)))
     d = campaign.faults
     healthy = bool(rng.random() < d.healthy_fraction)  # type: ignore[attr-defined]  # built at import
-    draws = {f.name: _draw(f.layout, rng) for f in CATALOGUE}
+    draws = {f.name: LAYOUTS[f.layout].draw(rng) for f in CATALOGUE}
     noise_seed, ga_seed = (int(s) for s in rng.integers(0, SEED_LIMIT, size=2))
     if healthy:
         return True, Faults(), noise_seed, ga_seed
     faults = Faults.model_validate(
-        {f.name: _fault_value(f, getattr(d, f.name), draws[f.name]) for f in CATALOGUE}
+        {f.name: LAYOUTS[f.layout].sampled(f, getattr(d, f.name), draws[f.name]) for f in CATALOGUE}
     )
     return False, faults, noise_seed, ga_seed
 
@@ -110,20 +76,22 @@ def sample_unit(campaign: Campaign, case_id: int) -> tuple[dict[str, float], flo
     rng = np.random.default_rng(np.random.SeedSequence(campaign.seed, spawn_key=(case_id,)))
     rng.random()
     for fault in CATALOGUE:
-        _draw(fault.layout, rng)
+        LAYOUTS[fault.layout].draw(rng)
     rng.integers(0, SEED_LIMIT, size=2)
     spread = {name: rng.random() for name in SPREAD_PARAMETERS}
     hinge_u, commission_hinge_u = rng.random(), rng.random()
     commission_seed = int(rng.integers(0, SEED_LIMIT))
     factors = {
-        name: 1.0 + _scaled(getattr(campaign.actuator_spread, name), u, 0.0)
+        name: 1.0 + uniform_value(getattr(campaign.actuator_spread, name), u, 0.0)
         for name, u in spread.items()
     }
-    hinge = _scaled(campaign.hinge_moment, hinge_u, 0.0)
+    hinge = uniform_value(campaign.hinge_moment, hinge_u, 0.0)
     return (
         factors,
         hinge,
-        Commissioning(commission_seed, _scaled(campaign.hinge_moment, commission_hinge_u, 0.0)),
+        Commissioning(
+            commission_seed, uniform_value(campaign.hinge_moment, commission_hinge_u, 0.0)
+        ),
     )
 
 

@@ -34,6 +34,7 @@ from ..faults import (
     CATALOGUE,
     FAULT_NAMES,
     FAULTS,
+    LAYOUTS,
     QUANTITIES,
     flat_from_nested,
     healthy_values,
@@ -231,19 +232,8 @@ def true_faults(history: History, laws: dict[str, Degradation], usage: float) ->
     for fault in CATALOGUE:
         law = laws.get(fault.name)
         level = _severity_at(law, usage) if law is not None else 0.0
-        growth = getattr(history.growth, fault.name)
-        if fault.layout == "scalar":
-            (q,) = fault.quantities
-            value[fault.name] = min(q.healthy + level, q.upper)
-            continue
-        value[fault.name] = {q.key: q.healthy for q in fault.quantities}
-        if law is None:
-            continue
-        if fault.layout == "per_phase":
-            value[fault.name][growth.phase] = min(level, FAULT_LIMIT)
-        else:
-            magnitude, angle = fault.quantities
-            value[fault.name] = {magnitude.key: min(level, FAULT_LIMIT), angle.key: growth.angle}
+        growth = getattr(history.growth, fault.name) if law is not None else None
+        value[fault.name] = LAYOUTS[fault.layout].grown(fault, level, growth, FAULT_LIMIT)
     return Faults.model_validate(value)
 
 
