@@ -9,9 +9,9 @@ when the trace's scenario is known) come from the trace.
 
 Nominal-discrepancy correction (``identify.nominal_correction``): the healthy
 Monitor differs from the healthy three-phase motor by a deterministic residual
-of about 2 % (commutation dips, freewheeling currents), as large as the
-signatures of incipient faults and partly aligned with them, so it biases the
-estimates. The correction subtracts that residual from the measured signals:
+(commutation dips, freewheeling currents; its size is measured in
+docs/explanation/method.md), as large as the signatures of incipient faults and
+partly aligned with them, so it biases the estimates. The correction subtracts that residual from the measured signals:
 the optimiser then fits the Monitor's *fault-induced* change to the measured
 one, which is what fault-signature fidelity (docs/reference.md, The models) guarantees. Two sources:
 
