@@ -482,12 +482,48 @@ def identify(
         measured, inp, params, settings, show_progress=show_progress, recordings=recordings
     )
 
-    truth = flatten(embedded.faults) if embedded is not None else None
+    data = report_data(
+        result,
+        settings=settings,
+        params=params,
+        truth=flatten(embedded.faults) if embedded is not None else None,
+        load=load,
+        load_note=load_note,
+        notes=resolved.notes,
+        source=str(source),
+        scenario_name=basis.name if basis is not None else None,
+        inspection=inspection,
+    )
+    _name_phases_as_recorded(data, (measured.metadata or {}).get("phase_identity"))
+    _check_phase_identity(data, params)
+    if output is None:
+        return Report.from_data(data)
+    folder = Path(output)
+    _write_report(data, result, measured, folder)
+    return Report.from_data(data, folder)
+
+
+def report_data(
+    result,
+    *,
+    settings: IdentifySettings,
+    params: Parameters,
+    truth: dict[str, float] | None,
+    load,
+    load_note: str,
+    notes: dict,
+    source: str,
+    scenario_name: str | None,
+    inspection: dict | None,
+) -> dict:
+    """The ``report.json`` content of one identification (docs/reference.md, Identification
+    report): the verdict (:func:`~emaprog.identification.result.judge`, the same a campaign
+    row takes), estimates and intervals in the report's shape, and the provenance."""
     verdict = verdicts.judge(result, settings.estimate, params, truth)
     health, error, phase = verdict.health, verdict.error, verdict.phase
     confidence = confidence_record(result.confidence)
     confidence["isolation"] = verdict.isolation
-    data = {
+    return {
         "estimate": nested(result.estimate),
         "truth": nested(truth) if truth is not None else None,
         "error": nested(error) if error is not None else None,
@@ -514,7 +550,7 @@ def identify(
             "applied": load.model_dump(mode="json") if load is not None else None,
             "note": load_note,
         },
-        "defaults": resolved.notes,
+        "defaults": notes,
         "ga": {
             "estimate": nested(result.ga_estimate),
             "fitness": result.ga_fitness,
@@ -527,19 +563,18 @@ def identify(
         "elapsed_s": result.elapsed_s,
         "seed": settings.ga.seed,
         "settings": settings.model_dump(mode="json"),
-        "trace": str(source),
-        "scenario": basis.name if basis is not None else None,
+        "trace": source,
+        "scenario": scenario_name,
         "parameters": params.source_file,
         "inspection": inspection,
         "emaprog_version": __version__,
     }
-    _name_phases_as_recorded(data, (measured.metadata or {}).get("phase_identity"))
-    _check_phase_identity(data, params)
-    if output is None:
-        return Report.from_data(data)
+
+
+def _write_report(data: dict, result, measured: Trace, folder: Path) -> None:
+    """report.json, report.md and the figures of an identification, into ``folder``."""
     from .report import plot_convergence, plot_fit, report_markdown
 
-    folder = Path(output)
     folder.mkdir(parents=True, exist_ok=True)
     objective = result.objective
     identified = objective.simulate(result.estimate)
@@ -562,7 +597,6 @@ def identify(
     data["figures"] = {name: path.name for name, path in figures.items()}
     write_json(folder / "report.json", data)
     (folder / "report.md").write_text(report_markdown(data))
-    return Report.from_data(data, folder)
 
 
 def _name_phases_as_recorded(data: dict, identity: dict | None) -> None:
