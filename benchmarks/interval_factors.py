@@ -53,7 +53,7 @@ import pandas as pd
 from _output import finish, parser  # the sibling module benchmarks/_output.py
 
 from emaprog.config import parameters
-from emaprog.faults import CATALOGUE, QUANTITIES, fault_load
+from emaprog.faults import CATALOGUE, NUISANCES, QUANTITIES, fault_load
 from emaprog.identification.confidence import BASES, Z90, quantity_error, quantity_interval
 from emaprog.identification.objective import NUISANCE_DEFAULTS
 
@@ -67,7 +67,7 @@ LOADS = np.concatenate([[0.0], np.geomspace(1e-3, 0.3, 31)])
 LOAD_WEIGHT = 0.5  # of each fault-load quarter in the loss, beside the two truth groups
 PHASE_SCALE = 0.1  # [rad] the eccentricity phase's load scale (it has no tolerance)
 #: [their unit] the nuisances' load scales (no tolerance either)
-NUISANCE_SCALE = {"hinge_moment": 5.0, "resistance_factor": 0.05}
+NUISANCE_SCALE = {n.name: n.load_scale for n in NUISANCES.values()}
 
 
 def wilson(hits: int, n: int, z: float = Z90) -> tuple[float, float]:

@@ -272,6 +272,67 @@ PHASES = "abc"
 #: The fault that sits on one motor phase: its isolation (which phase) is reported too.
 PHASE_FAULT = next(f.name for f in CATALOGUE if f.layout == "per_phase")
 
+
+class Nuisance(NamedTuple):
+    """An operating condition estimated beside the faults, never a verdict."""
+
+    name: str
+    label: str
+    unit: str
+    default: float  # its value when not estimated
+    bounds: tuple[float, float]  # default search range (``identify.nuisance_bounds``)
+    limits: tuple[float, float]  # what a search bound itself may be
+    fmt: str  # how the terminal and report.md print it
+    load_scale: (
+        float  # [its unit] the model-error law's load scale (benchmarks/interval_factors.py)
+    )
+    description: str
+
+
+#: The nuisances, in gene order: one table for the schema, the genes, the unit rows, the
+#: report and the calibration.
+NUISANCES: dict[str, Nuisance] = {
+    n.name: n
+    for n in (
+        Nuisance(
+            "hinge_moment",
+            "hinge moment",
+            "N m",
+            0.0,
+            (-500.0, 500.0),
+            (-5000.0, 5000.0),
+            "{:.1f}",
+            5.0,
+            "constant hinge moment",
+        ),
+        Nuisance(
+            "resistance_factor",
+            "winding resistance factor",
+            "-",
+            1.0,
+            (0.8, 1.3),
+            (0.5, 2.0),
+            "{:.3f}",
+            0.05,
+            "winding resistance over the set's (temperature)",
+        ),
+        Nuisance(
+            "hinge_stiffness",
+            "aerodynamic spring",
+            "N m/rad",
+            0.0,
+            (0.0, 5000.0),
+            (-1.0e4, 1.0e5),
+            "{:.0f}",
+            200.0,
+            "hinge moment per rad of surface deflection (an aerodynamic spring), beside the "
+            "constant hinge moment",
+        ),
+    )
+}
+
+NUISANCE_NAMES: tuple[str, ...] = tuple(NUISANCES)
+
 #: The kernels' field of each catalogue quantity (:class:`FaultParams`; :class:`MonitorFaults`
 #: holds Z = c zeta in ``eccentricity_z``). The kernels read fault rows by position, so the
 #: structs must list these fields in the catalogue's order: :func:`check_kernel_order`.

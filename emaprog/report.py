@@ -10,7 +10,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .faults import CATALOGUE, FAULTS, PHASE_FAULT, QUANTITIES, Quantity  # noqa: E402
+from .faults import CATALOGUE, FAULTS, NUISANCES, PHASE_FAULT, QUANTITIES, Quantity  # noqa: E402
 from .identification.confidence import MIN_PHASE_CONFIDENCE  # noqa: E402
 from .io.storage import Trace  # noqa: E402
 
@@ -186,10 +186,7 @@ def identification_summary(report: dict) -> str:
 
 
 #: Operating conditions estimated beside the faults: label, unit, format.
-NUISANCE_ROWS = {
-    "hinge_moment": ("hinge moment", "N m", "{:.1f}"),
-    "resistance_factor": ("winding resistance factor", "-", "{:.3f}"),
-}
+NUISANCE_ROWS = {n.name: (n.label, n.unit, n.fmt) for n in NUISANCES.values()}
 
 
 def _operating_lines(report: dict) -> list[str]:

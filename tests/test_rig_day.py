@@ -579,3 +579,41 @@ def test_a_resolver_angle_logged_within_one_turn_is_unwrapped(tmp_path, params):
     # 0.09-0.10 rad/s RMS measured with an unwrapped angle (docs/reference.md)
     assert float(np.sqrt(np.mean(error[10:-10] ** 2))) < 0.5
     assert abs(trace.metadata["phase_identity"]["electrical_angle_deg"] - 69.0) < 2.0
+
+
+@pytest.mark.slow
+def test_an_aerodynamic_spring_is_estimated_as_an_operating_condition(tmp_path):
+    """The example unit inspected under 30 N m plus an aerodynamic spring of 2000 N m/rad,
+    commissioned without one: with the default operating conditions the Monitor cannot
+    explain the recording (measured 1161 x its floor: every fault inconclusive); with
+    ``--nuisances hinge_moment,resistance_factor,hinge_stiffness`` the spring is estimated
+    beside the faults (measured 2005 [1927, 2083] N m/rad, friction 1.487, short B 0.117)
+    within tolerance, and the spring's interval holds the truth."""
+    gen = generator()
+    faults = {"friction": 1.5, "short_circuit": {"a": 0.0, "b": 0.12, "c": 0.0}}
+    cols = gen.simulate_recording(30.0, faults, 23, unit=gen.unit_parameters(), spring=2000.0)
+    frame = pd.DataFrame(
+        [r.split(",") for r in gen.logger_rows(cols)], columns=LOGGER_COLUMNS
+    ).astype(float)
+    inspection = write_logger(frame, tmp_path / "spring.csv")
+    unit = tmp_path / "unit.yaml"
+    healthy = [str(RIG / n) for n in ("healthy-20Nm.csv", "healthy-40Nm.csv")]
+    assert (
+        run(["commission", *healthy, "-c", str(RIG / "logger.yaml"), "-o", str(unit)]).exit_code
+        == 0
+    )
+    common = [str(inspection), "-c", str(RIG / "logger.yaml"), "-p", str(unit)]
+    result = run(["identify", *common, "-o", str(tmp_path / "plain")])
+    assert result.exit_code == 0, result.output
+    plain = json.loads((tmp_path / "plain" / "report.json").read_text())
+    assert set(plain["health"].values()) == {"inconclusive"}
+    nuisances = "hinge_moment,resistance_factor,hinge_stiffness"
+    result = run(["identify", *common, "--nuisances", nuisances, "-o", str(tmp_path / "spring")])
+    assert result.exit_code == 0, result.output
+    report = json.loads((tmp_path / "spring" / "report.json").read_text())
+    assert within_spec(report, {"faults": faults}) == [], within_spec(report, {"faults": faults})
+    low, high = report["nuisance_interval"]["hinge_stiffness"]
+    assert low <= 2000.0 <= high and abs(report["nuisance"]["hinge_stiffness"] / 2000.0 - 1) < 0.1
+    low, high = report["nuisance_interval"]["hinge_moment"]
+    assert low <= 30.0 <= high
+    assert "aerodynamic spring" in (tmp_path / "spring" / "report.md").read_text()

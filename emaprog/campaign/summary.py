@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from ..config.parameters import Parameters
-from ..faults import CATALOGUE, FAULT_NAMES, PHASE_FAULT, PHASES, QUANTITIES
+from ..faults import CATALOGUE, FAULT_NAMES, NUISANCES, PHASE_FAULT, PHASES, QUANTITIES
 from ..identification.confidence import Z90
 from ..identification.objective import NUISANCE_DEFAULTS
 
@@ -405,10 +405,9 @@ def _commissioning_markdown(summary: dict) -> str:
             + "\n\n"
         )
     for name, s in (summary.get("nuisance") or {}).items():
-        label, unit = {
-            "hinge_moment": ("Hinge moment", " N m"),
-            "resistance_factor": ("Resistance factor", ""),
-        }[name]
+        nuisance = NUISANCES[name]
+        label = nuisance.label.capitalize()
+        unit = "" if nuisance.unit == "-" else f" {nuisance.unit}"
         held = (
             ""
             if s.get("coverage") is None

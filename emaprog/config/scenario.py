@@ -23,7 +23,7 @@ from pydantic import (
 )
 
 from ..errors import from_validation_error
-from ..faults import CATALOGUE, FAULT_NAMES, FAULTS, Fault, Quantity
+from ..faults import CATALOGUE, FAULT_NAMES, FAULTS, NUISANCE_NAMES, NUISANCES, Fault, Quantity
 from ..kernels.structs import UNIT_COLUMNS
 from .yamlfile import catalogue_fields, load_mapping
 
@@ -252,30 +252,39 @@ class GASettings(Strict):
         return self
 
 
-NuisanceName = Literal["hinge_moment", "resistance_factor"]
+NuisanceName = Literal[NUISANCE_NAMES]  # type: ignore[valid-type]  # the table's names
 
 
-class NuisanceBounds(Strict):
-    hinge_moment: tuple[float, float] = Field(
-        (-500.0, 500.0), description="[N m] constant hinge moment, within [-5000, 5000]"
-    )
-    resistance_factor: tuple[float, float] = Field(
-        (0.8, 1.3),
-        description="[-] winding resistance over the set's (temperature), within [0.5, 2]",
-    )
+def _nuisance_bounds(value: tuple[float, float], info: ValidationInfo):
+    lo, hi = value
+    low, high = NUISANCES[str(info.field_name)].limits
+    if not (math.isfinite(lo) and math.isfinite(hi)) or not lo < hi:
+        raise ValueError(f"need finite bounds, lower below upper (got {lo}, {hi})")
+    if lo < low or hi > high:
+        raise ValueError(f"bounds must lie within [{low}, {high}]")
+    return value
 
-    @field_validator("hinge_moment", "resistance_factor")
-    @classmethod
-    def _check(cls, value: tuple[float, float], info: ValidationInfo):
-        lo, hi = value
-        low, high = {"hinge_moment": (-5000.0, 5000.0), "resistance_factor": (0.5, 2.0)}[
-            str(info.field_name)
-        ]
-        if not (math.isfinite(lo) and math.isfinite(hi)) or not lo < hi:
-            raise ValueError(f"need finite bounds, lower below upper (got {lo}, {hi})")
-        if lo < low or hi > high:
-            raise ValueError(f"bounds must lie within [{low}, {high}]")
-        return value
+
+#: Search range of each nuisance (``identify.nuisance_bounds``), from the nuisance table.
+NuisanceBounds = create_model(
+    "NuisanceBounds",
+    __base__=Strict,
+    __module__=__name__,
+    __validators__=catalogue_fields({"_check": field_validator(*NUISANCES)(_nuisance_bounds)}),
+    **catalogue_fields(
+        {
+            n.name: (
+                tuple[float, float],
+                Field(
+                    n.bounds,
+                    description=f"[{n.unit}] {n.description}, within [{n.limits[0]:g}, "
+                    f"{n.limits[1]:g}]",
+                ),
+            )
+            for n in NUISANCES.values()
+        }
+    ),
+)
 
 
 class IdentifySettings(Strict):
@@ -452,7 +461,7 @@ FaultDistributions = create_model(
 
 
 #: Parameters a campaign may spread from unit to unit (relative changes of the set's values).
-SPREAD_PARAMETERS = tuple(name for name in UNIT_COLUMNS if name != "hinge_moment")
+SPREAD_PARAMETERS = tuple(name for name in UNIT_COLUMNS if name not in NUISANCES)
 
 
 def _relative_range(dist, info: ValidationInfo):

@@ -370,7 +370,14 @@ def jacobian(
 
 
 def covariance(jac: np.ndarray, residual: np.ndarray, blocks: list[int]) -> np.ndarray:
-    """Sandwich covariance of the weighted least-squares estimate (module docstring)."""
+    """Sandwich covariance of the weighted least-squares estimate (module docstring).
+
+    Worked out on the Jacobian's columns scaled to unit norm, then scaled back: whether a
+    direction is constrained at all must not depend on the units of its coordinate (an
+    aerodynamic spring in N m/rad beside a shorted fraction read as blind in raw units)."""
+    scale = np.sqrt(np.sum(jac * jac, axis=0))
+    scale = np.where(scale > 0.0, scale, 1.0)
+    jac = jac / scale
     a_inv = information_inverse(jac.T @ jac)
     middle = np.zeros((jac.shape[1], jac.shape[1]))
     edges = np.cumsum([0, *blocks])
@@ -383,7 +390,7 @@ def covariance(jac: np.ndarray, residual: np.ndarray, blocks: list[int]) -> np.n
     cov = np.full_like(a_inv, np.inf)
     sub = np.ix_(finite, finite)
     cov[sub] = a_inv[sub] @ middle[sub] @ a_inv[sub]
-    return cov
+    return cov / np.outer(scale, scale)
 
 
 def quantity_interval(name: str, value, se):

@@ -111,9 +111,11 @@ def echo_errors(
     if factor != 1.0:
         unit = scaled(unit, {"phase_resistance": factor}, unit.source_file)
     inputs = objective.inputs
+    # the echo's truth under the estimated spring; it is identified on the recording's inputs
+    spring = truth.get("hinge_stiffness", NUISANCE_DEFAULTS["hinge_stiffness"])
     columns, _ = reference.run(
         unit,
-        inputs,
+        inputs._replace(load_stiffness=inputs.load_stiffness + spring),
         reference_form({q: truth[q] for q in QUANTITIES}),
         ECHO_SEED,
         hinge_moment=float(truth.get("hinge_moment", 0.0)),

@@ -39,6 +39,7 @@ from ..config.scenario import IdentifySettings
 from ..faults import (
     CATALOGUE,
     HEALTHY,
+    NUISANCES,
     QUANTITIES,
     ZETA_COLUMN,
     healthy_values,
@@ -46,7 +47,14 @@ from ..faults import (
 )
 from ..io.storage import Trace
 from ..models import monitor, reference
-from ..models.bldc import U_HINGE_MOMENT, U_PHASE_RESISTANCE, ErrorTarget, Plant, moving_average
+from ..models.bldc import (
+    U_HINGE_MOMENT,
+    U_HINGE_STIFFNESS,
+    U_PHASE_RESISTANCE,
+    ErrorTarget,
+    Plant,
+    moving_average,
+)
 from ..models.common import Inputs, recorded_instants
 from ..models.family import family_of
 from ..numerics import DEFAULT, Numerics
@@ -78,7 +86,7 @@ class Gene(NamedTuple):
 
 
 #: Operating conditions that can be estimated beside the faults: their value when not.
-NUISANCE_DEFAULTS = {"hinge_moment": 0.0, "resistance_factor": 1.0}
+NUISANCE_DEFAULTS = {n.name: n.default for n in NUISANCES.values()}
 
 
 def genes_of(settings: IdentifySettings) -> list[Gene]:
@@ -268,7 +276,7 @@ class Objective:
         return np.ascontiguousarray(rows)
 
     def unit_rows(self, genes: np.ndarray) -> np.ndarray:
-        """(m, 10) unit rows: the set's plant with each candidate's nuisances, or (1, 10)."""
+        """(m, 11) unit rows: the set's plant with each candidate's nuisances, or (1, 11)."""
         genes = np.atleast_2d(genes)
         nuisances = [(j, g) for j, g in enumerate(self.genes) if g.quantity in NUISANCE_DEFAULTS]
         if not nuisances:
@@ -278,6 +286,8 @@ class Objective:
             value = self.lower[j] + np.clip(genes[:, j], 0, 1) * self.span[j]
             if gene.quantity == "hinge_moment":
                 units[:, U_HINGE_MOMENT] = value
+            elif gene.quantity == "hinge_stiffness":
+                units[:, U_HINGE_STIFFNESS] = value
             else:
                 units[:, U_PHASE_RESISTANCE] = self.units[0, U_PHASE_RESISTANCE] * value
         return units
@@ -328,9 +338,10 @@ class Objective:
         unit = self.units[0].copy()
         unit[U_HINGE_MOMENT] = values["hinge_moment"]
         unit[U_PHASE_RESISTANCE] *= values["resistance_factor"]
+        spring = self.inputs.load_stiffness + values["hinge_stiffness"]
         return monitor.run(
             self.params,
-            self.inputs,
+            self.inputs._replace(load_stiffness=spring),
             monitor_form(values, self.eccentricity_gain),
             opts=self.options,
             hinge_moment=float(unit[U_HINGE_MOMENT]),

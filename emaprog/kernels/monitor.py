@@ -59,6 +59,7 @@ from .structs import (
     U_PHASE_INDUCTANCE,
     U_TRANSMISSION_STIFFNESS,
     U_HINGE_MOMENT,
+    U_HINGE_STIFFNESS,
 ) = range(len(UNIT_COLUMNS))
 
 SHORT_CIRCUIT_MODULATED = 0
@@ -439,7 +440,7 @@ def evaluate_population(faults, units, drive, plant, options, target, fitness):
     faults : (m, 7) float64
         Rows of Monitor fault values in :class:`~emaprog.kernels.structs.MonitorFaults`
         order (friction, backlash, short a, b, c, Z, phi).
-    units : (m, 10) or (1, 10) float64
+    units : (m, 11) or (1, 11) float64
         Each candidate's unit: :data:`~emaprog.kernels.structs.UNIT_COLUMNS`
         (inertias, viscous, friction, resistance, back-EMF constant, inductance,
         stiffness, constant hinge moment); one row is shared by every candidate.
@@ -456,7 +457,7 @@ def evaluate_population(faults, units, drive, plant, options, target, fitness):
 
 @njit(cache=True)
 def simulate_units(row, units, drive, plant, options, current, position, speed):
-    """The Monitor outputs of one fault row under each unit row of ``units`` (m, 10), in one
+    """The Monitor outputs of one fault row under each unit row of ``units`` (m, 11), in one
     call (parallel over the units): ``current``, ``position``, ``speed`` (m, n) outputs. What
     commissioning's finite-difference Jacobian evaluates: one perturbed unit per row."""
     _simulate_units_parallel(
@@ -505,7 +506,7 @@ def _simulate_candidate(row, unit, drive, plant, options):
     own_drive = Drive(
         drive.command,
         drive.load_torque,
-        drive.load_stiffness,
+        drive.load_stiffness + unit[U_HINGE_STIFFNESS],
         unit[U_HINGE_MOMENT],
         drive.electrical_angle,
     )

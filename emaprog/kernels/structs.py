@@ -70,7 +70,8 @@ class Plant(NamedTuple):
 
 #: Columns of a per-candidate unit row (:func:`emaprog.kernels.monitor.evaluate_population`):
 #: the physical values that vary from unit to unit, and the recording's constant hinge
-#: moment. Units: kg m^2, kg m^2, N m s/rad, N m, N m, ohm, V s/rad, H, N m/rad, N m.
+#: moment and aerodynamic spring (both added to the drive's load). Units: kg m^2, kg m^2,
+#: N m s/rad, N m, N m, ohm, V s/rad, H, N m/rad, N m, N m/rad.
 UNIT_COLUMNS = (
     "motor_inertia",
     "surface_inertia",
@@ -82,10 +83,11 @@ UNIT_COLUMNS = (
     "phase_inductance",
     "transmission_stiffness",
     "hinge_moment",
+    "hinge_stiffness",
 )
 
 
-def unit_row(plant: Plant, hinge_moment: float = 0.0) -> np.ndarray:
+def unit_row(plant: Plant, hinge_moment: float = 0.0, hinge_stiffness: float = 0.0) -> np.ndarray:
     """The :data:`UNIT_COLUMNS` row of a plant as it is [SI]."""
     e, m = plant.electrical, plant.mechanical
     return np.array(
@@ -100,6 +102,7 @@ def unit_row(plant: Plant, hinge_moment: float = 0.0) -> np.ndarray:
             e.phase_inductance,
             m.transmission_stiffness,
             hinge_moment,
+            hinge_stiffness,
         ]
     )
 

@@ -13,6 +13,7 @@ from ..kernels.bldc import IDLE_PHASE, POSITIVE_PHASE
 from ..kernels.control import replay_controller
 from ..kernels.monitor import (
     U_HINGE_MOMENT,
+    U_HINGE_STIFFNESS,
     U_PHASE_RESISTANCE,
     evaluate_population,
     evaluate_residuals,
@@ -38,6 +39,7 @@ __all__ = [
     "POSITIVE_PHASE",
     "UNIT_COLUMNS",
     "U_HINGE_MOMENT",
+    "U_HINGE_STIFFNESS",
     "U_PHASE_RESISTANCE",
     "ErrorTarget",
     "MonitorOptions",

@@ -32,9 +32,12 @@ class MotorFamily(Protocol):
     #: unit (commissioning) columns of a unit row, and their slots
     UNIT_COLUMNS: tuple[str, ...]
     U_HINGE_MOMENT: int
+    U_HINGE_STIFFNESS: int
     U_PHASE_RESISTANCE: int
 
-    def unit_row(self, plant: Any, hinge_moment: float = 0.0) -> np.ndarray:
+    def unit_row(
+        self, plant: Any, hinge_moment: float = 0.0, hinge_stiffness: float = 0.0
+    ) -> np.ndarray:
         """A plant's unit row (:data:`UNIT_COLUMNS`)."""
         ...
 

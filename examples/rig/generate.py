@@ -83,18 +83,22 @@ def simulate_recording(
     preroll: float = 0.0,
     unit=None,
     electrical_angle: float = 0.0,
+    spring: float = 0.0,
 ) -> dict[str, np.ndarray]:
     """The unit's noisy Reference trace of the standard test command under ``hinge`` [N m];
     with ``preroll`` [s] the logger starts that long before the command (the actuator at rest
     under its load from the first sample, as on a rig); ``electrical_angle`` [rad] is the
-    rotor's electrical angle where the position and motor-angle sensors read 0."""
+    rotor's electrical angle where the position and motor-angle sensors read 0; ``spring`` [N m/rad] an
+    aerodynamic spring on the surface beside the constant ``hinge``."""
     base = load_scenario(HERE / "test-command.yaml")
     unit = unit_parameters() if unit is None else unit
     scenario = base.model_validate(
         {
             **base.model_dump(mode="json"),
             "seed": seed,
-            "load": {"kind": "constant", "torque": hinge},
+            "load": {"kind": "spring", "stiffness": spring, "torque": hinge}
+            if spring
+            else {"kind": "constant", "torque": hinge},
             "faults": faults,
         }
     )
