@@ -173,9 +173,10 @@ Faults = create_model("Faults", __base__=Strict, __module__=__name__, **_FAULT_F
 FaultName = Literal[FAULT_NAMES]  # type: ignore[valid-type]  # the catalogue's names, at import
 
 
-def _check_bounds(value: tuple[float, float], info: ValidationInfo):
+def _within(value: tuple[float, float], limits: tuple[float, float]) -> tuple[float, float]:
+    """A search range ``(lo, hi)``: finite, ``lo < hi``, inside ``limits``."""
     lo, hi = value
-    low, high = FAULTS[str(info.field_name)].bound_limits
+    low, high = limits
     if not (math.isfinite(lo) and math.isfinite(hi)):
         raise ValueError("bounds must be finite numbers")
     if not lo < hi:
@@ -183,6 +184,10 @@ def _check_bounds(value: tuple[float, float], info: ValidationInfo):
     if lo < low or hi > high:
         raise ValueError(f"bounds must lie within [{low}, {high}]")
     return value
+
+
+def _check_bounds(value: tuple[float, float], info: ValidationInfo):
+    return _within(value, FAULTS[str(info.field_name)].bound_limits)
 
 
 #: Search range of each fault's magnitudes (its angles span the circle).
@@ -256,13 +261,7 @@ NuisanceName = Literal[NUISANCE_NAMES]  # type: ignore[valid-type]  # the table'
 
 
 def _nuisance_bounds(value: tuple[float, float], info: ValidationInfo):
-    lo, hi = value
-    low, high = NUISANCES[str(info.field_name)].limits
-    if not (math.isfinite(lo) and math.isfinite(hi)) or not lo < hi:
-        raise ValueError(f"need finite bounds, lower below upper (got {lo}, {hi})")
-    if lo < low or hi > high:
-        raise ValueError(f"bounds must lie within [{low}, {high}]")
-    return value
+    return _within(value, NUISANCES[str(info.field_name)].limits)
 
 
 #: Search range of each nuisance (``identify.nuisance_bounds``), from the nuisance table.
