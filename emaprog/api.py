@@ -780,6 +780,34 @@ def _read_baseline(path: Path) -> dict:
     return data
 
 
+def _open_store(
+    store,
+    source: Path,
+    digest: str,
+    meta: dict,
+    definition: dict,
+    base: Scenario,
+    params: Parameters,
+    resume: bool,
+    count: int,
+) -> tuple[list[int], set[int]]:
+    """Open a results folder's case store (its manifest: ``meta``, the definition, base
+    scenario and parameter values); the case indices still to run, and the finished ones."""
+    store.open(
+        source,
+        digest,
+        {
+            **meta,
+            **definition,
+            "base_scenario": base.model_dump(mode="json"),
+            "parameter_values": params.values(),
+        },
+        resume,
+    )
+    finished = set(store.finished())
+    return [k for k in range(count) if k not in finished], finished
+
+
 def sweep(
     campaign_path: str | Path,
     output: str | Path | None = None,
@@ -856,19 +884,17 @@ def _sweep(
         "parameters": params.source_file,
         "emaprog_version": __version__,
     }
-    store.open(
+    todo, finished = _open_store(
+        store,
         campaign_path,
         digest,
-        {
-            **meta,
-            "campaign_definition": campaign.model_dump(mode="json"),
-            "base_scenario": base.model_dump(mode="json"),
-            "parameter_values": params.values(),
-        },
+        meta,
+        {"campaign_definition": campaign.model_dump(mode="json")},
+        base,
+        params,
         resume,
+        campaign.cases,
     )
-    finished = store.finished()
-    todo = [k for k in range(campaign.cases) if k not in finished]
     specs = campaigns.case_specs(campaign, base, params, digest, todo)
     workers = campaigns.worker_count(workers, len(todo))
     start = time.perf_counter()
@@ -1002,19 +1028,17 @@ def trend(
             "actuator": history.actuator,
             "emaprog_version": __version__,
         }
-        store.open(
+        todo, finished = _open_store(
+            store,
             history_path,
             digest,
-            {
-                **meta,
-                "history_definition": history.model_dump(mode="json"),
-                "base_scenario": base.model_dump(mode="json"),
-                "parameter_values": params.values(),
-            },
+            meta,
+            {"history_definition": history.model_dump(mode="json")},
+            base,
+            params,
             resume,
+            history.inspections.count,
         )
-        finished = store.finished()
-        todo = [k for k in range(history.inspections.count) if k not in finished]
         specs = histories.inspection_specs(history, base, params, digest, todo)
         workers = campaigns.worker_count(workers, len(todo))
         campaigns.execute(

@@ -627,19 +627,29 @@ def twist_tolerance_deg(params: Parameters) -> float:
     )
 
 
+def _sensor_electrical_deg(
+    trace_columns: dict[str, np.ndarray], params: Parameters, source: str
+) -> float:
+    """``P`` times the angle sensor's first reading [deg electrical]: the motor angle, or the
+    position times the gear ratio (``source``)."""
+    reading = (
+        float(trace_columns["motor_angle"][0])
+        if source == "motor_angle"
+        else params.spec.mechanical.gear_ratio * float(trace_columns["position"][0])
+    )
+    return math.degrees(params.spec.electrical.pole_pairs * reading)
+
+
 def sensor_offset_deg(
     identity: dict, trace_columns: dict[str, np.ndarray], params: Parameters
 ) -> tuple[float, str]:
     """The rotor's electrical angle where the angle sensor reads 0 [deg], from a recording's
     identity, and which sensor that is (``motor_angle``, else ``position`` times the gear
     ratio): a property of the unit, stored at commissioning."""
-    pp = params.spec.electrical.pole_pairs
-    if "motor_angle" in trace_columns:
-        source, reading = "motor_angle", float(trace_columns["motor_angle"][0])
-    else:
-        source = "position"
-        reading = params.spec.mechanical.gear_ratio * float(trace_columns["position"][0])
-    offset = identity["electrical_angle_deg"] - math.degrees(pp * reading)
+    source = "motor_angle" if "motor_angle" in trace_columns else "position"
+    offset = identity["electrical_angle_deg"] - _sensor_electrical_deg(
+        trace_columns, params, source
+    )
     return round((offset + 180.0) % 360.0 - 180.0, 3), source
 
 
@@ -652,16 +662,12 @@ def expected_angle_deg(trace_columns: dict[str, np.ndarray], params: Parameters)
     for r in record.recordings:
         known = r.phase_identity or {}
         if known.get("trusted") and "sensor_offset_deg" in known:
-            source = known.get("offset_from")
+            source = known.get("offset_from", "position")
             if source == "motor_angle" and "motor_angle" not in trace_columns:
                 continue
-            pp = params.spec.electrical.pole_pairs
-            reading = (
-                float(trace_columns["motor_angle"][0])
-                if source == "motor_angle"
-                else params.spec.mechanical.gear_ratio * float(trace_columns["position"][0])
+            return float(known["sensor_offset_deg"]) + _sensor_electrical_deg(
+                trace_columns, params, source
             )
-            return float(known["sensor_offset_deg"]) + math.degrees(pp * reading)
     return None
 
 
