@@ -8,6 +8,7 @@ faults) live in the scenario. Derived constants are computed in one place,
 
 from __future__ import annotations
 
+import math
 from importlib import resources
 from pathlib import Path
 from typing import Annotated, Literal, NamedTuple
@@ -17,6 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
 from ..errors import InputError, from_validation_error
 from ..faults import CATALOGUE
 from ..kernels.structs import (
+    REGULATORS,
     ControllerParams,
     ElectricalParams,
     MechanicalParams,
@@ -44,6 +46,40 @@ class Electrical(_Section):
     back_emf_constant: Pos = Field(description="[V s/rad] per phase, flat top, mechanical speed")
     current_limit: Pos = Field(description="[A] saturation of the current reference")
     hysteresis_band: Pos = Field(description="[A] half width of the hysteresis current regulator")
+
+
+class CurrentLoop(_Section):
+    """How the drive regulates the winding current (docs/reference.md, Parameter-set YAML):
+    a hysteresis regulator (the paper's) or a PWM voltage inverter with a PI current loop,
+    as the drive's datasheet states it."""
+
+    regulator: Literal["hysteresis", "pwm"] = Field(
+        "hysteresis",
+        description="'hysteresis': bang-bang on the active pair's current within "
+        "electrical.hysteresis_band; 'pwm': centre-aligned PWM of the pair's legs, "
+        "complementary switches with dead time, PI current loop sampled once a period",
+    )
+    pwm_frequency: Pos = Field(20000.0, description="[Hz] switching (and current sampling) rate")
+    dead_time: Annotated[float, Field(strict=True, ge=0, le=5e-6)] = Field(
+        1.0e-6, description="[s] both switches of a leg off at each transition"
+    )
+    current_bandwidth: Pos = Field(
+        1500.0,
+        description="[Hz] the PI loop's crossover: gains 2 pi f (2 L) and 2 pi f (2 R) on "
+        "the active pair (zero on the winding's pole)",
+    )
+    back_emf_feedforward: bool = Field(
+        True, description="the pair's back-EMF 2 k_e w (measured speed) added to the voltage demand"
+    )
+    computation_delay: Annotated[int, Field(strict=True, ge=0, le=2)] = Field(
+        1, description="[PWM periods] from the current sample to the duty it sets"
+    )
+
+    @model_validator(mode="after")
+    def _dead_time_within_period(self):
+        if self.dead_time * self.pwm_frequency >= 0.1:
+            raise ValueError("dead_time must be under a tenth of the PWM period")
+        return self
 
 
 class Mechanical(_Section):
@@ -215,6 +251,9 @@ class ParameterFile(_Section):
     changes: list[str] = Field(default_factory=list, description="record of tuning changes")
     motor: Motor = Field(default_factory=Motor, description="the motor family (omitted: bldc)")
     electrical: Electrical
+    drive: CurrentLoop = Field(
+        default_factory=CurrentLoop, description="the current regulator (omitted: hysteresis)"
+    )
     mechanical: Mechanical
     controller: Controller
     sensors: Sensors
@@ -240,8 +279,9 @@ class Parameters(NamedTuple):
         """Plain values actually used (for provenance). A set of the first family without a
         ``motor`` section dumps as before, so that its campaigns keep their hashes."""
         values = self.spec.model_dump(mode="json")
-        if values.get("motor") == Motor().model_dump(mode="json"):
-            del values["motor"]
+        for key, default in (("motor", Motor()), ("drive", CurrentLoop())):
+            if values.get(key) == default.model_dump(mode="json"):
+                del values[key]
         return values
 
     @property
@@ -254,6 +294,8 @@ def derive(spec: ParameterFile, source_file: str) -> Parameters:
     """Build kernel structs from a validated file; every derived value is here."""
     e, m, c, s = spec.electrical, spec.mechanical, spec.controller, spec.sensors
     levels = float(2**s.adc_bits)
+    loop = spec.drive
+    crossover = 2.0 * math.pi * loop.current_bandwidth
     return Parameters(
         source_file=source_file,
         spec=spec,
@@ -265,6 +307,13 @@ def derive(spec: ParameterFile, source_file: str) -> Parameters:
             e.back_emf_constant,
             e.current_limit,
             e.hysteresis_band,
+            REGULATORS.index(loop.regulator),
+            1.0 / loop.pwm_frequency,
+            loop.dead_time,
+            crossover * 2.0 * e.phase_inductance,
+            crossover * 2.0 * e.phase_resistance,
+            2.0 * e.back_emf_constant if loop.back_emf_feedforward else 0.0,
+            loop.computation_delay,
         ),
         mechanical=MechanicalParams(**m.model_dump()),
         controller=ControllerParams(

@@ -37,6 +37,16 @@ from .bldc import (
     trapezoid,
 )
 from .control import clip, sample_and_control
+from .drive import (
+    EDGE_TOLERANCE,
+    L_APPLIED,
+    L_CLOCK,
+    LOOP_SLOTS,
+    PWM,
+    dead_time_loss,
+    loop_sample,
+    positive_duty,
+)
 from .mechanics import mechanics_step
 from .structs import (
     UNIT_COLUMNS,
@@ -175,7 +185,7 @@ def equivalent_branch_step(current, current_ref, gain, a, drive, back, omega, vd
 
 @njit(cache=True)
 def commutation_step(
-    pair, outgoing, current_ref, s6, theta_e, omega, k_phase, r_phase, l_phase, vdc, dt
+    pair, outgoing, current_ref, s6, theta_e, omega, k_phase, r_phase, l_phase, vdc, dt, duty
 ):
     """One step of a commutation: the pair current and the outgoing phase's freewheeling current.
 
@@ -187,7 +197,8 @@ def commutation_step(
     The bridge's mean duty ``d`` on the pair (``v_p = d Vdc``, ``v_q = (1-d) Vdc``,
     the mean of the hysteresis switching) is the one that brings ``y`` to the
     reference in this step, clipped to [0, 1] (then ``y`` lags: the commutation
-    torque dip at speed). Star-point circuit per phase
+    torque dip at speed). Under a PWM drive the duty is the loop's own (``duty`` in
+    [0, 1]; a negative ``duty`` asks for the regulating one). Star-point circuit per phase
     ``L_x di_x/dt = v_x - v_n - e_x - R_x i_x``, ``sum i_x = 0``; explicit Euler.
 
     ``k_phase``, ``r_phase``, ``l_phase`` are per-phase (3,) arrays with the
@@ -213,7 +224,8 @@ def commutation_step(
     n0 = (a_p * g_p + (vdc + a_q) * g_q + w_o * g_o) / g
     c1 = 0.5 * ((vdc - n1) * g_p + (vdc + n1) * g_q)
     c0 = 0.5 * ((a_p - n0) * g_p - (vdc + a_q - n0) * g_q)
-    duty = min(1.0, max(0.0, ((current_ref - pair) / dt - c0) / c1))
+    if duty < 0.0:
+        duty = min(1.0, max(0.0, ((current_ref - pair) / dt - c0) / c1))
     v_n = n0 + n1 * duty
     pair_new = pair + (c0 + c1 * duty) * dt
     outgoing_new = outgoing + (w_o - v_n) * g_o * dt
@@ -227,6 +239,24 @@ def commutation_step(
         + k_phase[o] * shape_o * outgoing_new
     )
     return pair_new, outgoing_new, torque, equivalent_current(i_p, i_q, outgoing_new, torque)
+
+
+@njit(cache=True)
+def mean_demand(loop, pair_current, current_ref, speed, elec, dt):
+    """The PWM loop over one Monitor step: the PI's updates at the period starts inside it
+    (on the step's starting current) and the time mean of the applied demand [V]."""
+    period = elec.pwm_period
+    remaining = dt
+    volt_seconds = 0.0
+    while remaining > 0.0:
+        if loop[L_CLOCK] >= period - EDGE_TOLERANCE:
+            loop[L_CLOCK] = 0.0
+            loop_sample(loop, pair_current, current_ref, speed, elec)
+        h = min(period - loop[L_CLOCK], remaining)
+        volt_seconds += loop[L_APPLIED] * h
+        loop[L_CLOCK] += h
+        remaining -= h
+    return volt_seconds / dt
 
 
 @njit(cache=True)
@@ -266,8 +296,10 @@ def simulate_monitor(drive, plant, faults, options, out):
     sector_decay = np.empty(6)
     sector_drive = np.empty(6)
     sector_back = np.empty(6)
+    sector_l = np.empty(6)
     for s6 in range(6):
         f_psc, f_l = sector_short_circuit_factors(s6, n_a, n_b, n_c, options.short_circuit_model)
+        sector_l[s6] = base_l * f_l
         sector_gain[s6] = base_gain * f_psc
         sector_r[s6] = base_r * f_psc
         sector_decay[s6] = math.exp(-base_r * f_psc * dt / (base_l * f_l))
@@ -289,6 +321,9 @@ def simulate_monitor(drive, plant, faults, options, out):
     unit_k = gain_scale * elec.back_emf_constant
     k_phase = unit_k * phase_working
     outgoing = 0.0  # [A] freewheeling current of the phase that last left the pair
+    pwm = elec.regulator == PWM
+    loop = np.zeros(len(LOOP_SLOTS))
+    loop[L_CLOCK] = np.inf  # a PWM period starts with the first step
     theta_e0 = drive.electrical_angle
     last_sector = sector(theta_e0)
     theta_m = 0.0
@@ -328,6 +363,12 @@ def simulate_monitor(drive, plant, faults, options, out):
                 outgoing = i if POSITIVE_PHASE[last_sector] == idle else -i
                 i = 0.5 * i  # the common phase alone carries the old current
             last_sector = s6
+            duty = -1.0
+            volts = 0.0
+            if pwm:
+                volts = mean_demand(loop, i, current_ref, spd_meas, elec, dt)
+                volts -= dead_time_loss(i, sector_l[s6], elec)
+                duty = positive_duty(volts, elec.dc_bus_voltage)
             if outgoing != 0.0:
                 i, outgoing, torque, measured = commutation_step(
                     i,
@@ -341,7 +382,15 @@ def simulate_monitor(drive, plant, faults, options, out):
                     l_phase,
                     elec.dc_bus_voltage,
                     dt,
+                    duty,
                 )
+            elif pwm:
+                emf = gain * omega_m
+                i = sector_decay[s6] * i + sector_back[s6] * (
+                    clip(volts, elec.dc_bus_voltage) - emf
+                )
+                torque = gain * i
+                measured = i
             else:
                 i = equivalent_branch_step(
                     i,
@@ -400,6 +449,13 @@ def unit_plant(plant, row):
         row[U_BACK_EMF_CONSTANT],
         e.current_limit,
         e.hysteresis_band,
+        e.regulator,
+        e.pwm_period,
+        e.dead_time,
+        e.loop_gain,
+        e.loop_integral,
+        e.emf_feedforward,
+        e.loop_delay,
     )
     mechanical = MechanicalParams(
         row[U_MOTOR_INERTIA],

@@ -1,4 +1,5 @@
-"""Reference Model time loop: controller (ZOH) + hysteresis H-bridge + BLDC + 2-DOF mechanics."""
+"""Reference Model time loop: controller (ZOH) + current regulator (hysteresis H-bridge or
+PWM inverter with a PI loop) + BLDC + 2-DOF mechanics."""
 
 from __future__ import annotations
 
@@ -17,6 +18,17 @@ from .bldc import (
     winding_step,
 )
 from .control import quantize, sample_and_control
+from .drive import (
+    EDGE_TOLERANCE,
+    L_APPLIED,
+    L_CLOCK,
+    LOOP_SLOTS,
+    PWM,
+    leg_level,
+    loop_sample,
+    next_edge,
+    positive_duty,
+)
 from .mechanics import mechanics_step
 
 #: Slots of the energy ledger written by :func:`simulate_reference` [J].
@@ -61,7 +73,7 @@ STATE_SLOTS = (
     "mean_current_b",
     "mean_current_c",
     "mean_torque",
-)
+) + tuple(f"loop_{slot}" for slot in LOOP_SLOTS)
 (
     S_CURRENT_A,
     S_CURRENT_B,
@@ -78,13 +90,16 @@ STATE_SLOTS = (
     S_MEAN_CURRENT_B,
     S_MEAN_CURRENT_C,
     S_MEAN_TORQUE,
-) = range(len(STATE_SLOTS))
+    S_LOOP,
+) = range(len(STATE_SLOTS) - len(LOOP_SLOTS) + 1)
 
 
 def initial_state() -> np.ndarray:
-    """The state at rest (all zeros; the bridge starts driving positive current)."""
+    """The state at rest (all zeros; the bridge starts driving positive current; a PWM
+    period starts with the first step: its clock past any period)."""
     state = np.zeros(len(STATE_SLOTS))
     state[S_BRIDGE] = 1.0
+    state[S_LOOP + L_CLOCK] = np.inf
     return state
 
 
@@ -106,6 +121,35 @@ def _sample_currents(k, acc_eq, acc_a, acc_b, acc_c, acc_t, noise, sens, out):
     out.current_b[k] = quantize(acc_b + noise.current_b[k], sens.current_lsb, sens.current_range)
     out.current_c[k] = quantize(acc_c + noise.current_c[k], sens.current_lsb, sens.current_range)
     out.torque[k] = acc_t
+
+
+@njit(cache=True)
+def _pwm_substep(i, scratch, e, r, l, s6, current_ref, speed, loop, elec, dt):
+    """One integration step under the PWM inverter, split at every switching edge and PWM
+    period start inside it (:mod:`emaprog.kernels.drive`); ``i`` and ``loop`` in place,
+    ``scratch`` the (legs, v, tied) arrays of :func:`winding_step`. Returns the inverter's
+    energy over the step [J]."""
+    period, dead, vdc = elec.pwm_period, elec.dead_time, elec.dc_bus_voltage
+    legs, v, tied = scratch
+    p, q, idle = POSITIVE_PHASE[s6], NEGATIVE_PHASE[s6], IDLE_PHASE[s6]
+    remaining = dt
+    work = 0.0
+    legs[idle] = 0
+    while remaining > 0.0:
+        if loop[L_CLOCK] >= period - EDGE_TOLERANCE:
+            loop[L_CLOCK] = 0.0
+            loop_sample(loop, 0.5 * (i[p] - i[q]), current_ref, speed, elec)
+        clock = loop[L_CLOCK]
+        duty = positive_duty(loop[L_APPLIED], vdc)
+        edge = min(next_edge(clock, duty, period, dead), next_edge(clock, 1.0 - duty, period, dead))
+        h = min(edge - clock, remaining)
+        middle = clock + 0.5 * h
+        legs[p] = leg_level(middle, duty, period, dead)
+        legs[q] = leg_level(middle, 1.0 - duty, period, dead)
+        work += winding_step(i, legs, e, r, l, vdc, h, v, tied) * h
+        loop[L_CLOCK] = clock + h
+        remaining -= h
+    return work
 
 
 @njit(cache=True)
@@ -132,7 +176,7 @@ def simulate_reference(drive, noise, plant, faults, substeps, out, energy, state
     energy : (9,) float64, in/out
         Energy ledger [J], slots :data:`ENERGY_SLOTS`; reset when ``start`` is 0,
         accumulated over later chunks.
-    state : (15,) float64, in/out
+    state : float64 array of :data:`STATE_SLOTS`, in/out
         Slots :data:`STATE_SLOTS`; :func:`initial_state` for ``start`` 0, then
         whatever the previous chunk left. Chunked and single-call runs are identical.
     start, stop : int
@@ -149,6 +193,7 @@ def simulate_reference(drive, noise, plant, faults, substeps, out, energy, state
     legs = np.zeros(3, dtype=np.int64)
     v_scratch = np.zeros(3)
     tied_scratch = np.zeros(3, dtype=np.int64)
+    scratch = (legs, v_scratch, tied_scratch)
     theta_m = state[S_MOTOR_ANGLE]
     omega_m = state[S_MOTOR_SPEED]
     theta_s = state[S_SURFACE_ANGLE]
@@ -161,6 +206,8 @@ def simulate_reference(drive, noise, plant, faults, substeps, out, energy, state
     acc_b = state[S_MEAN_CURRENT_B]
     acc_c = state[S_MEAN_CURRENT_C]
     acc_t = state[S_MEAN_TORQUE]
+    loop = state[S_LOOP:]
+    pwm = elec.regulator == PWM
     if start == 0:
         for slot in range(energy.size):
             energy[slot] = 0.0
@@ -193,15 +240,16 @@ def simulate_reference(drive, noise, plant, faults, substeps, out, energy, state
             s6 = sector(theta_e)
             p = POSITIVE_PHASE[s6]
             q = NEGATIVE_PHASE[s6]
-            # hysteresis regulator on the active pair's current
-            regulated = 0.5 * (i[p] - i[q])
-            if regulated < current_ref - elec.hysteresis_band:
-                bridge = 1
-            elif regulated > current_ref + elec.hysteresis_band:
-                bridge = -1
-            legs[p] = bridge
-            legs[q] = -bridge
-            legs[IDLE_PHASE[s6]] = 0
+            if not pwm:
+                # hysteresis regulator on the active pair's current
+                regulated = 0.5 * (i[p] - i[q])
+                if regulated < current_ref - elec.hysteresis_band:
+                    bridge = 1
+                elif regulated > current_ref + elec.hysteresis_band:
+                    bridge = -1
+                legs[p] = bridge
+                legs[q] = -bridge
+                legs[IDLE_PHASE[s6]] = 0
             torque = 0.0
             for x in range(3):
                 kx = phase_coefficient(
@@ -216,7 +264,13 @@ def simulate_reference(drive, noise, plant, faults, substeps, out, energy, state
                 e[x] = shape * omega_m
                 torque += shape * i[x]
             copper = r[0] * i[0] ** 2 + r[1] * i[1] ** 2 + r[2] * i[2] ** 2
-            power = winding_step(i, legs, e, r, l, elec.dc_bus_voltage, dt, v_scratch, tied_scratch)
+            if pwm:
+                work = _pwm_substep(i, scratch, e, r, l, s6, current_ref, spd_meas, loop, elec, dt)
+            else:
+                work = (
+                    winding_step(i, legs, e, r, l, elec.dc_bus_voltage, dt, v_scratch, tied_scratch)
+                    * dt
+                )
             omega_m_old = omega_m
             omega_s_old = omega_s
             theta_m, omega_m, theta_s, omega_s, applied = mechanics_step(
@@ -232,7 +286,7 @@ def simulate_reference(drive, noise, plant, faults, substeps, out, energy, state
                 mech,
                 dt,
             )
-            energy[E_INVERTER] += power * dt
+            energy[E_INVERTER] += work
             energy[E_COPPER] += copper * dt
             energy[E_FRICTION] -= applied.friction * omega_m * dt
             energy[E_VISCOUS] += (

@@ -12,8 +12,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-
 # ---------------------------------------------------------------- parameters
+#: The current regulators, in the order of ``ElectricalParams.regulator``
+#: (:mod:`emaprog.kernels.drive`).
+REGULATORS = ("hysteresis", "pwm")
+
+
 class ElectricalParams(NamedTuple):
     dc_bus_voltage: float  # [V]
     pole_pairs: float  # [-]
@@ -22,6 +26,13 @@ class ElectricalParams(NamedTuple):
     back_emf_constant: float  # [V s/rad] per phase
     current_limit: float  # [A]
     hysteresis_band: float  # [A]
+    regulator: int  # index in REGULATORS
+    pwm_period: float  # [s] derived: 1 / pwm_frequency
+    dead_time: float  # [s]
+    loop_gain: float  # [V/A] PI proportional gain on the pair current
+    loop_integral: float  # [V/(A s)] PI integral gain
+    emf_feedforward: float  # [V s/rad] pair back-EMF feed-forward gain (0: none)
+    loop_delay: int  # [PWM periods] from the current sample to its duty
 
 
 class MechanicalParams(NamedTuple):
