@@ -157,6 +157,12 @@ def test_resume_refuses_a_changed_campaign_and_a_used_folder(tiny, tmp_path):
     assert resumed.exit_code == 0 and "0 run now, 8 from earlier runs" in resumed.output
 
 
+def _default_sigint() -> None:
+    """A child's Ctrl-C as at a terminal, even under a runner started in the background (a
+    shell starts background jobs with SIGINT ignored, and children inherit that)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _start_sweep(path: Path, folder: Path) -> subprocess.Popen:
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     return subprocess.Popen(
@@ -166,6 +172,7 @@ def _start_sweep(path: Path, folder: Path) -> subprocess.Popen:
         text=True,
         env=env,
         start_new_session=True,
+        preexec_fn=_default_sigint,
     )
 
 
