@@ -185,6 +185,34 @@ def test_error_surface_has_its_minimum_at_the_truth(params, quantity, truth, spa
     assert fitness[0] > 1.5 * fitness.min() and fitness[-1] > 1.5 * fitness.min()
 
 
+@pytest.mark.parametrize("indent", ["  ", ""])
+def test_the_calibrated_set_records_its_change_in_the_files_own_list_style(tmp_path, indent):
+    """A ``changes:`` list with its items indented or at the margin (both YAML; the second is
+    what yaml.safe_dump writes) gains the calibration's record in the same style, and the
+    written set loads with the calibrated values."""
+    import re
+
+    import yaml
+
+    from emaprog.config import parameters
+    from emaprog.fitting.calibration import calibrated_set
+
+    text = (parameters.builtin_dir() / "default.yaml").read_text()
+    text = re.sub(r"^  - ", indent + "- ", text, flags=re.MULTILINE)
+    source = tmp_path / "mine.yaml"
+    source.write_text(text)
+    result = {
+        "eccentricity_gain": 0.51,
+        "commutation_loss": 8.0e-6,
+        "r_squared": 0.999,
+        "signature_error": {"friction": 0.05},
+    }
+    written = yaml.safe_load(calibrated_set(source, result, "2026-12-01"))
+    assert written["monitor"]["eccentricity_gain"] == 0.51
+    assert len(written["changes"]) == len(yaml.safe_load(text)["changes"]) + 1
+    assert "emaprog calibrate" in written["changes"][-1]
+
+
 def test_calibrate_finds_a_linear_z_zeta_law_and_never_edits_its_input(tmp_path):
     """Calibration (docs/reference.md): Z = c zeta with r^2 >= 0.95; every fault signature within 0.35.
 

@@ -207,22 +207,28 @@ def calibrated_set(source: str | Path, result: dict, date: str) -> str:
             raise ValueError(f"{source}: cannot find monitor.{key} to update")
         moved.append(f"{key} {getattr(before, key):g} -> {float(value):g}")
     record = (
-        f'  - "monitor: {", ".join(moved)}, written by `emaprog calibrate` on {date} '
+        f'"monitor: {", ".join(moved)}, written by `emaprog calibrate` on {date} '
         f"(r^2 {result['r_squared']:.4f}; signature errors "
         f'{max(result["signature_error"].values()):.2f} at most)."'
     )
     if re.search(r"^changes:\s*\[\s*\]\s*$", text, flags=re.MULTILINE):
-        text = re.sub(r"^changes:\s*\[\s*\]\s*$", "changes:\n" + record, text, flags=re.MULTILINE)
+        text = re.sub(
+            r"^changes:\s*\[\s*\]\s*$", "changes:\n  - " + record, text, flags=re.MULTILINE
+        )
     elif re.search(r"^changes:\s*$", text, flags=re.MULTILINE):
         lines = text.splitlines()
         start = lines.index(next(line for line in lines if re.match(r"^changes:\s*$", line)))
         end = start + 1
-        while end < len(lines) and (lines[end].startswith(" ") or not lines[end].strip()):
+        # the block's items, indented or not ("- " at the margin is YAML too)
+        while end < len(lines) and (lines[end].startswith((" ", "-")) or not lines[end].strip()):
             end += 1
-        lines.insert(end, record)
+        item = next((line for line in lines[start + 1 : end] if line.lstrip().startswith("-")), "")
+        lines.insert(
+            end, (item[: len(item) - len(item.lstrip())] if item else "  ") + "- " + record
+        )
         text = "\n".join(lines) + "\n"
     else:
-        text = text.rstrip("\n") + "\nchanges:\n" + record + "\n"
+        text = text.rstrip("\n") + "\nchanges:\n  - " + record + "\n"
     after = ParameterFile.model_validate(parse_mapping(text, source)).monitor
     for key, fmt in CALIBRATED:
         if getattr(after, key) != float(fmt.format(result[key])):
