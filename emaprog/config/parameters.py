@@ -116,6 +116,13 @@ class Controller(_Section):
     speed_limit: Pos = Field(description="[rad/s] motor speed command saturation")
 
 
+class AntiAlias(_Section):
+    """A Butterworth low-pass on a signal line."""
+
+    cutoff: Pos = Field(description="[Hz] -3 dB frequency")
+    order: Annotated[int, Field(strict=True, ge=1, le=2)] = Field(2, description="[-] 1 or 2")
+
+
 class Sensors(_Section):
     """Feedback transducers: offset, electrical noise (1 sigma), ADC."""
 
@@ -127,6 +134,43 @@ class Sensors(_Section):
     position_range: Pos = Field(description="[rad] ADC full scale (+/-)")
     speed_range: Pos = Field(description="[rad/s] ADC full scale (+/-)")
     current_range: Pos = Field(description="[A] ADC full scale (+/-)")
+    position_filter: AntiAlias | None = Field(
+        None, description="analog anti-alias filter on the position line (omitted: none)"
+    )
+    current_filter: AntiAlias | None = Field(
+        None, description="analog anti-alias filter on each current line (omitted: none)"
+    )
+    speed_source: Literal["tachometer", "angle"] = Field(
+        "tachometer",
+        description="'tachometer': the motor speed on its own line; 'angle': the motor "
+        "angle read by a resolver of angle_bits, differenced over the controller period",
+    )
+    speed_filter: AntiAlias | None = Field(
+        None,
+        description="the tachometer line's analog anti-alias filter, or with speed_source "
+        "'angle' the digital filter on the differenced angle (omitted: none)",
+    )
+    angle_bits: Annotated[int, Field(strict=True, ge=8, le=24)] = Field(
+        16, description="[bit] resolver resolution per motor revolution (speed_source angle)"
+    )
+    current_sampling: Literal["mean", "point"] = Field(
+        "mean",
+        description="'mean': each logged current is its mean over the controller period "
+        "(integrate-and-dump); 'point': its value at the sample instant",
+    )
+
+
+#: The sensor chain's keys (docs/reference.md, Parameter-set YAML): omitted from a set's
+#: provenance when they are at their defaults, so that sets and campaigns written before
+#: the chain existed keep their hashes.
+CHAIN_KEYS = (
+    "position_filter",
+    "current_filter",
+    "speed_source",
+    "speed_filter",
+    "angle_bits",
+    "current_sampling",
+)
 
 
 class Motor(_Section):
@@ -282,12 +326,20 @@ class Parameters(NamedTuple):
         for key, default in (("motor", Motor()), ("drive", CurrentLoop())):
             if values.get(key) == default.model_dump(mode="json"):
                 del values[key]
+        for key in CHAIN_KEYS:
+            if values["sensors"][key] == Sensors.model_fields[key].default:
+                del values["sensors"][key]
         return values
 
     @property
     def plant(self) -> Plant:
         """The kernels' view of the unit: electrical, mechanical, controller, sensors."""
         return Plant(self.electrical, self.mechanical, self.controller, self.sensors)
+
+
+def _filter_fields(spec: AntiAlias | None) -> tuple[float, int]:
+    """A filter's (cutoff [rad/s], order) in the kernels' form; (0, 1) for none."""
+    return (0.0, 1) if spec is None else (2.0 * math.pi * spec.cutoff, spec.order)
 
 
 def derive(spec: ParameterFile, source_file: str) -> Parameters:
@@ -333,6 +385,12 @@ def derive(spec: ParameterFile, source_file: str) -> Parameters:
             s.position_range,
             s.speed_range,
             s.current_range,
+            *_filter_fields(s.position_filter),
+            *_filter_fields(s.speed_filter),
+            *_filter_fields(s.current_filter),
+            s.speed_source == "angle",
+            2.0 * math.pi / 2**s.angle_bits,
+            s.current_sampling == "point",
         ),
     )
 

@@ -368,6 +368,7 @@ def fine_plant(plant: Plant) -> Plant:
             position_lsb=s.position_lsb * FINE_QUANTISATION,
             speed_lsb=s.speed_lsb * FINE_QUANTISATION,
             current_lsb=s.current_lsb * FINE_QUANTISATION,
+            angle_lsb=s.angle_lsb * FINE_QUANTISATION,
         )
     )
 

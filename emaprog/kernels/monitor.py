@@ -48,8 +48,10 @@ from .drive import (
     positive_duty,
 )
 from .mechanics import mechanics_step
+from .sensors import F_CURRENT, advance, analog_step, feedback_inputs, filter_bank
 from .structs import (
     UNIT_COLUMNS,
+    ChainState,
     Drive,
     ElectricalParams,
     MechanicalParams,
@@ -324,6 +326,11 @@ def simulate_monitor(drive, plant, faults, options, out):
     pwm = elec.regulator == PWM
     loop = np.zeros(len(LOOP_SLOTS))
     loop[L_CLOCK] = np.inf  # a PWM period starts with the first step
+    sens = plant.sensors
+    bank = filter_bank(sens, dt, plant.controller.period)
+    chain = ChainState(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    line, line_rate = 0.0, 0.0  # the current line's filter
+    point = sens.current_point
     theta_e0 = drive.electrical_angle
     last_sector = sector(theta_e0)
     theta_m = 0.0
@@ -335,8 +342,11 @@ def simulate_monitor(drive, plant, faults, options, out):
     i = 0.0
     mean_current = 0.0
     for k in range(n):
+        position_in, speed_in, chain = feedback_inputs(
+            chain, theta_s, theta_m, omega_m, sens, bank, plant.controller.period
+        )
         pos_meas, spd_meas, current_ref, position_int, speed_int = sample_and_control(
-            drive.command[k], theta_s, omega_m, 0.0, 0.0, position_int, speed_int, plant
+            drive.command[k], position_in, speed_in, 0.0, 0.0, position_int, speed_int, plant
         )
         out.position[k] = pos_meas
         out.speed[k] = spd_meas
@@ -405,6 +415,7 @@ def simulate_monitor(drive, plant, faults, options, out):
                 torque = gain * i
                 measured = i
             torque *= max(0.0, 1.0 - options.commutation_loss * abs(omega_m))
+            chain = analog_step(chain, theta_s, omega_m, bank)
             theta_m, omega_m, theta_s, omega_s, _ = mechanics_step(
                 theta_m,
                 omega_m,
@@ -418,8 +429,13 @@ def simulate_monitor(drive, plant, faults, options, out):
                 mech,
                 dt,
             )
-            mean_current += measured
-        mean_current /= substeps
+            line, line_rate = advance(line, line_rate, measured, bank[F_CURRENT])
+            if point:
+                mean_current = line
+            else:
+                mean_current += line
+        if not point:
+            mean_current /= substeps
 
 
 @njit(cache=True)

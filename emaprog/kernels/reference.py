@@ -30,6 +30,8 @@ from .drive import (
     positive_duty,
 )
 from .mechanics import mechanics_step
+from .sensors import F_CURRENT, advance, analog_step, feedback_inputs, filter_bank
+from .structs import ChainState
 
 #: Slots of the energy ledger written by :func:`simulate_reference` [J].
 ENERGY_SLOTS = (
@@ -74,6 +76,10 @@ STATE_SLOTS = (
     "mean_current_c",
     "mean_torque",
 ) + tuple(f"loop_{slot}" for slot in LOOP_SLOTS)
+#: The sensor chain's states (:mod:`emaprog.kernels.sensors`): its
+#: :class:`~emaprog.kernels.structs.ChainState`, then each phase-current line's filter.
+STATE_SLOTS += tuple(f"chain_{field}" for field in ChainState._fields)
+STATE_SLOTS += tuple(f"line_{phase}_{j}" for phase in "abc" for j in range(2))
 (
     S_CURRENT_A,
     S_CURRENT_B,
@@ -91,7 +97,9 @@ STATE_SLOTS = (
     S_MEAN_CURRENT_C,
     S_MEAN_TORQUE,
     S_LOOP,
-) = range(len(STATE_SLOTS) - len(LOOP_SLOTS) + 1)
+) = range(STATE_SLOTS.index("loop_clock") + 1)
+S_CHAIN = S_LOOP + len(LOOP_SLOTS)
+S_LINES = S_CHAIN + len(ChainState._fields)
 
 
 def initial_state() -> np.ndarray:
@@ -206,8 +214,23 @@ def simulate_reference(drive, noise, plant, faults, substeps, out, energy, state
     acc_b = state[S_MEAN_CURRENT_B]
     acc_c = state[S_MEAN_CURRENT_C]
     acc_t = state[S_MEAN_TORQUE]
-    loop = state[S_LOOP:]
+    loop = state[S_LOOP:S_CHAIN]
     pwm = elec.regulator == PWM
+    sens = plant.sensors
+    bank = filter_bank(sens, dt, plant.controller.period)
+    chain = ChainState(
+        state[S_CHAIN],
+        state[S_CHAIN + 1],
+        state[S_CHAIN + 2],
+        state[S_CHAIN + 3],
+        state[S_CHAIN + 4],
+        state[S_CHAIN + 5],
+        state[S_CHAIN + 6],
+    )
+    a0, a1 = state[S_LINES], state[S_LINES + 1]
+    b0, b1 = state[S_LINES + 2], state[S_LINES + 3]
+    c0, c1 = state[S_LINES + 4], state[S_LINES + 5]
+    point = sens.current_point
     if start == 0:
         for slot in range(energy.size):
             energy[slot] = 0.0
@@ -215,10 +238,13 @@ def simulate_reference(drive, noise, plant, faults, substeps, out, energy, state
             i, l, theta_m, omega_m, theta_s, omega_s, faults.backlash, mech
         )
     for k in range(start, stop):
+        position_in, speed_in, chain = feedback_inputs(
+            chain, theta_s, theta_m, omega_m, sens, bank, plant.controller.period
+        )
         pos_meas, spd_meas, current_ref, position_int, speed_int = sample_and_control(
             drive.command[k],
-            theta_s,
-            omega_m,
+            position_in,
+            speed_in,
             noise.position[k],
             noise.speed[k],
             position_int,
@@ -273,6 +299,7 @@ def simulate_reference(drive, noise, plant, faults, substeps, out, energy, state
                 )
             omega_m_old = omega_m
             omega_s_old = omega_s
+            chain = analog_step(chain, theta_s, omega_m, bank)
             theta_m, omega_m, theta_s, omega_s, applied = mechanics_step(
                 theta_m,
                 omega_m,
@@ -299,16 +326,25 @@ def simulate_reference(drive, noise, plant, faults, substeps, out, energy, state
                 )
             energy[E_LOAD] += applied.hinge * omega_s * dt
             energy[E_END_STOP] -= applied.end_stop * omega_s * dt
-            acc_eq += equivalent_current(i[0], i[1], i[2], torque)
-            acc_a += i[0]
-            acc_b += i[1]
-            acc_c += i[2]
-            acc_t += torque
-        acc_eq /= substeps
-        acc_a /= substeps
-        acc_b /= substeps
-        acc_c /= substeps
-        acc_t /= substeps
+            a0, a1 = advance(a0, a1, i[0], bank[F_CURRENT])
+            b0, b1 = advance(b0, b1, i[1], bank[F_CURRENT])
+            c0, c1 = advance(c0, c1, i[2], bank[F_CURRENT])
+            line_a, line_b, line_c = a0, b0, c0
+            if point:
+                acc_eq = equivalent_current(line_a, line_b, line_c, torque)
+                acc_a, acc_b, acc_c, acc_t = line_a, line_b, line_c, torque
+            else:
+                acc_eq += equivalent_current(line_a, line_b, line_c, torque)
+                acc_a += line_a
+                acc_b += line_b
+                acc_c += line_c
+                acc_t += torque
+        if not point:
+            acc_eq /= substeps
+            acc_a /= substeps
+            acc_b /= substeps
+            acc_c /= substeps
+            acc_t /= substeps
     energy[E_STORED_FINAL] = _stored_energy(
         i, l, theta_m, omega_m, theta_s, omega_s, faults.backlash, mech
     )
@@ -330,3 +366,7 @@ def simulate_reference(drive, noise, plant, faults, substeps, out, energy, state
         (S_MEAN_TORQUE, acc_t),
     ):
         state[slot] = value
+    for j, value in enumerate(chain):
+        state[S_CHAIN + j] = value
+    for j, value in enumerate((a0, a1, b0, b1, c0, c1)):
+        state[S_LINES + j] = value

@@ -68,6 +68,44 @@ class SensorParams(NamedTuple):
     position_range: float  # [rad]
     speed_range: float  # [rad/s]
     current_range: float  # [A]
+    position_cutoff: float  # [rad/s] anti-alias filter (0: none)
+    position_order: int  # [-] 1 or 2 (Butterworth)
+    speed_cutoff: (
+        float  # [rad/s] tachometer anti-alias, or the digital filter on the angle's difference
+    )
+    speed_order: int  # [-]
+    current_cutoff: float  # [rad/s] each current line's anti-alias filter
+    current_order: int  # [-]
+    speed_from_angle: bool  # speed differenced from the resolver's motor angle
+    angle_lsb: float  # [rad] resolver step: 2 pi / 2^angle_bits
+    current_point: bool  # currents point-sampled at k T (else their mean over the period)
+
+
+class FilterCoefficients(NamedTuple):
+    """One sensor-chain filter discretised at a model's step (:mod:`emaprog.kernels.sensors`):
+    ``x' = A_d x + B_d u``, output ``x[0]``."""
+
+    a00: float
+    a01: float
+    a10: float
+    a11: float
+    b0: float
+    b1: float
+    on: bool  # False: the line has no filter (its output is its input)
+
+
+class ChainState(NamedTuple):
+    """The sensor chain's filter states outside the current lines [their signal's unit, and
+    per second]: position and tachometer anti-alias filters, the digital speed filter, and
+    the resolver's last reading of the motor angle [rad]."""
+
+    position: float
+    position_rate: float
+    speed: float
+    speed_rate: float
+    digital: float
+    digital_rate: float
+    resolver: float
 
 
 class Plant(NamedTuple):
