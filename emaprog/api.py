@@ -248,6 +248,7 @@ class Commissioned:
     degenerate: list[str]
     hinge_moments: list[float]  # [N m] per recording
     residual: float
+    hinge_stiffnesses: list[float] | None = None  # [N m/rad] per recording, when fitted
 
 
 def _measured(
@@ -302,7 +303,16 @@ def _commissioning_residuals(params: Parameters) -> list:
             out.append(f"commissioning recording {entry.file} unreadable: {exc}")
             continue
         rec_inputs = inputs_from_trace(recording, params)
-        out.append(recording_residual(recording, rec_inputs, params, entry.hinge_moment, str(path)))
+        out.append(
+            recording_residual(
+                recording,
+                rec_inputs,
+                params,
+                entry.hinge_moment,
+                str(path),
+                hinge_stiffness=entry.hinge_stiffness,
+            )
+        )
     return out
 
 
@@ -313,12 +323,16 @@ def commission(
     parameters: str | Path | None = None,
     columns: str | Path | None = None,
     scenario: str | Path | None = None,
+    nuisances: list[str] | None = None,
     force: bool = False,
 ) -> Commissioned:
     """Fit a unit's own parameter set from recordings of it while healthy (docs/reference.md, Commissioning).
 
     ``recordings``: contract traces (Parquet) or, with ``columns``, rig recordings;
-    ``scenario``: the test command of recordings without a command channel.
+    ``scenario``: the test command of recordings without a command channel; ``nuisances``:
+    the operating conditions fitted per recording, ``hinge_moment`` (always) and
+    ``hinge_stiffness`` (an aerodynamic spring): both fits the spring, ``["hinge_moment"]``
+    holds it at 0, None (default) fits it where the recordings show one.
     Writes ``output`` (a complete parameter set YAML with a ``commissioning`` section:
     recordings and hashes, base set, fitted values with standard errors, residuals,
     parameters held at the base value). The base set (``parameters``, default
@@ -331,6 +345,15 @@ def commission(
 
     if not recordings:
         raise InputError("commission", "give at least one recording of the healthy unit")
+    extra = sorted(set(nuisances or []) - {"hinge_moment", "hinge_stiffness"})
+    if extra:
+        raise InputError(
+            "--nuisances",
+            f"'{extra[0]}' is not fitted per recording by commissioning (allowed: "
+            "hinge_moment, hinge_stiffness; the winding resistance is a unit parameter "
+            "commissioning fits itself)",
+        )
+    spring = None if nuisances is None else "hinge_stiffness" in nuisances
     writable_output(output, "file", force, protected=True)
     base = _parameters(parameters, None, None, "--parameters")
     test = load_scenario(scenario) if scenario is not None else None
@@ -341,7 +364,7 @@ def commission(
         check_plausible(trace, base, path)
         check_at_rest(trace, base, path)
         prepared.append(commissioning.prepare(trace, str(path), base))
-    result = commissioning.fit(prepared, base)
+    result = commissioning.fit(prepared, base, spring=spring)
     commissioning.check_explained(result, prepared)
     output = Path(output)
     name = re.sub(r"[^A-Za-z0-9_-]", "-", output.stem) or "unit"
@@ -375,6 +398,7 @@ def commission(
         result.degenerate,
         result.hinge_moments,
         result.residual,
+        result.hinge_stiffnesses if any(result.stiffness_errors) else None,
     )
 
 

@@ -241,6 +241,15 @@ def commission(
             "command channel (placed in time by the response).",
         ),
     ] = None,
+    nuisances: Annotated[
+        str | None,
+        typer.Option(
+            "--nuisances",
+            help="Operating conditions fitted per recording: hinge_moment (always) and "
+            "hinge_stiffness (an aerodynamic spring). Default: the spring where the "
+            "recordings show one; 'hinge_moment' alone holds it at 0, both always fit it.",
+        ),
+    ] = None,
     force: ForceOption = False,
 ):
     """Fit a unit's own parameter set (inertias, friction, viscous, R, k_e, L, stiffness)."""
@@ -249,7 +258,13 @@ def commission(
     _say_if_compiling()
 
     unit = api.commission(
-        recordings, output, parameters=parameters, columns=columns, scenario=scenario, force=force
+        recordings,
+        output,
+        parameters=parameters,
+        columns=columns,
+        scenario=scenario,
+        nuisances=_nuisance_list(nuisances),
+        force=force,
     )
     for name, entry in unit.fitted.items():
         typer.echo(
@@ -263,6 +278,11 @@ def commission(
     typer.echo(
         "hinge moment per recording [N m]: " + ", ".join(f"{h:.1f}" for h in unit.hinge_moments)
     )
+    if unit.hinge_stiffnesses is not None:
+        typer.echo(
+            "aerodynamic spring per recording [N m/rad]: "
+            + ", ".join(f"{k:.0f}" for k in unit.hinge_stiffnesses)
+        )
     typer.echo(f"unit: {unit.parameter_set}")
 
 
@@ -296,8 +316,9 @@ def identify(
         typer.Option(
             "--nuisances",
             help="Operating conditions to estimate beside the faults: a comma list "
-            "of hinge_moment, resistance_factor, or none. Default: both for a real unit (a rig "
-            "recording or a commissioned unit's set), none for a twin experiment.",
+            "of hinge_moment, resistance_factor, hinge_stiffness, or none. Default: the first "
+            "two for a real unit (a rig recording or a commissioned unit's set), none for a "
+            "twin experiment.",
         ),
     ] = None,
     force: ForceOption = False,

@@ -129,8 +129,8 @@ def test_a_set_without_the_chain_keeps_its_provenance():
 @pytest.mark.parametrize("aware", [True, False])
 def test_a_pwm_unit_logged_through_the_chain_is_identified_with_its_own_form(tmp_path, aware):
     """The Fig. 10 faults on the default unit under the 20 kHz PWM drive, logged through the
-    chain: identified with a set naming both (default-pwm + the chain) every quantity is
-    within its tolerance (friction -1.4 % measured, the short named on A); with the plain
+    chain: identified with a set naming both (default-pwm) every quantity is within its
+    tolerance (friction 1.801 measured, short A 0.194, zeta 0.199); with the plain
     hysteresis set the same recording is inconclusive (fit 55 x its floor, over the 25 x
     limit), never a wrong finding."""
     import yaml

@@ -42,9 +42,11 @@ def commission_case(spec: CaseSpec, unit: Parameters) -> tuple[Parameters, dict,
             "seed": spec.commission.seed,
         }
     )
-    recording = reference.simulate(with_hinge(healthy, spec.commission.hinge_moment), unit)
+    recording = reference.simulate(
+        with_hinge(healthy, spec.commission.hinge_moment, spec.commission.hinge_stiffness), unit
+    )
     prepared = commissioning.prepare(recording, f"case {spec.case_id} commissioning", spec.params)
-    fit = commissioning.fit([prepared], spec.params)
+    fit = commissioning.fit([prepared], spec.params)  # the spring as `emaprog commission`
     commissioning.check_explained(fit, [prepared])
     commissioned = parameter_sets.scaled(
         spec.params,
@@ -68,12 +70,17 @@ def commission_case(spec: CaseSpec, unit: Parameters) -> tuple[Parameters, dict,
         }
     )
     row["commission_se_hinge_moment"] = float(fit.hinge_errors[0])
+    row["commission_err_hinge_stiffness"] = float(
+        fit.hinge_stiffnesses[0] - spec.commission.hinge_stiffness
+    )
+    row["commission_se_hinge_stiffness"] = float(fit.stiffness_errors[0])
     residual = recording_residual(
         recording,
         prepared.inputs,
         commissioned,
         fit.hinge_moments[0],
         f"case {spec.case_id} commissioning",
+        hinge_stiffness=fit.hinge_stiffnesses[0],
     )
     return commissioned, row, residual
 
@@ -87,7 +94,9 @@ def run_case(spec: CaseSpec) -> dict:
     """
     start = time.perf_counter()
     unit = spec.unit if spec.unit is not None else spec.params
-    trace = reference.simulate(with_hinge(spec.scenario, spec.hinge_moment), unit)
+    trace = reference.simulate(
+        with_hinge(spec.scenario, spec.hinge_moment, spec.hinge_stiffness), unit
+    )
     simulated = time.perf_counter()
     params, recordings = spec.params, []
     commission_row: dict[str, float | str] = {}
@@ -159,6 +168,7 @@ def run_case(spec: CaseSpec) -> dict:
             "simulate_s": simulated - start,
             "identify_s": result.elapsed_s,
             "true_hinge_moment": float(spec.hinge_moment),
+            "true_hinge_stiffness": float(spec.hinge_stiffness),
             **{
                 f"est_{name}": float(result.estimate[name])
                 if name in (settings.nuisances or [])

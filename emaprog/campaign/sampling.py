@@ -25,6 +25,7 @@ class Commissioning(NamedTuple):
 
     seed: int
     hinge_moment: float  # [N m]
+    hinge_stiffness: float = 0.0  # [N m/rad]
 
 
 class CaseSpec(NamedTuple):
@@ -38,6 +39,7 @@ class CaseSpec(NamedTuple):
     campaign_hash: str
     unit: Parameters | None = None  # the case's own unit (actuator_spread), None: params
     hinge_moment: float = 0.0  # [N m] unknown to the identification
+    hinge_stiffness: float = 0.0  # [N m/rad] unknown to the identification
     commission: Commissioning | None = None  # commission the unit first (campaign commission)
 
 
@@ -66,8 +68,11 @@ def sample_case(campaign: Campaign, case_id: int) -> tuple[bool, Faults, int, in
     return False, faults, noise_seed, ga_seed
 
 
-def sample_unit(campaign: Campaign, case_id: int) -> tuple[dict[str, float], float, Commissioning]:
-    """Case ``case_id``'s unit factors, hinge moment and commissioning recording.
+def sample_unit(
+    campaign: Campaign, case_id: int
+) -> tuple[dict[str, float], float, float, Commissioning]:
+    """Case ``case_id``'s unit factors, hinge moment, aerodynamic spring and commissioning
+    recording.
 
     Drawn from the same stream as :func:`sample_case`, after all of its draws, every
     draw made whether or not its distribution is given: a campaign without spread keeps
@@ -81,6 +86,7 @@ def sample_unit(campaign: Campaign, case_id: int) -> tuple[dict[str, float], flo
     spread = {name: rng.random() for name in SPREAD_PARAMETERS}
     hinge_u, commission_hinge_u = rng.random(), rng.random()
     commission_seed = int(rng.integers(0, SEED_LIMIT))
+    spring_u, commission_spring_u = rng.random(), rng.random()
     factors = {
         name: 1.0 + uniform_value(getattr(campaign.actuator_spread, name), u, 0.0)
         for name, u in spread.items()
@@ -89,8 +95,11 @@ def sample_unit(campaign: Campaign, case_id: int) -> tuple[dict[str, float], flo
     return (
         factors,
         hinge,
+        uniform_value(campaign.hinge_stiffness, spring_u, 0.0),
         Commissioning(
-            commission_seed, uniform_value(campaign.hinge_moment, commission_hinge_u, 0.0)
+            commission_seed,
+            uniform_value(campaign.hinge_moment, commission_hinge_u, 0.0),
+            uniform_value(campaign.hinge_stiffness, commission_spring_u, 0.0),
         ),
     )
 
@@ -118,7 +127,7 @@ def case_specs(
             params,
             campaign_hash,
         )
-        factors, hinge, commissioning = sample_unit(campaign, case_id)
+        factors, hinge, spring, commissioning = sample_unit(campaign, case_id)
         spread = {k: f for k, f in factors.items() if f != 1.0}
         unit = (
             parameter_sets.scaled(params, spread, f"{campaign.name}-case-{case_id} unit")
@@ -126,7 +135,10 @@ def case_specs(
             else None
         )
         yield spec._replace(
-            unit=unit, hinge_moment=hinge, commission=commissioning if campaign.commission else None
+            unit=unit,
+            hinge_moment=hinge,
+            hinge_stiffness=spring,
+            commission=commissioning if campaign.commission else None,
         )
 
 
@@ -161,14 +173,17 @@ def make_spec(
     return CaseSpec(case_id, healthy, scenario, params, case_settings, digest)
 
 
-def with_hinge(scenario: Scenario, hinge_moment: float) -> Scenario:
-    """The scenario with a constant hinge moment [N m] added to its load."""
-    if hinge_moment == 0.0:
+def with_hinge(scenario: Scenario, hinge_moment: float, hinge_stiffness: float = 0.0) -> Scenario:
+    """The scenario with a constant hinge moment [N m] and an aerodynamic spring [N m/rad]
+    added to its load."""
+    if hinge_moment == 0.0 and hinge_stiffness == 0.0:
         return scenario
     load = scenario.load.model_dump(mode="json")
     if load["kind"] == "none":
         load = {"kind": "constant", "torque": 0.0}
     load["torque"] = load["torque"] + hinge_moment
+    if hinge_stiffness != 0.0:
+        load = {**load, "kind": "spring", "stiffness": load.get("stiffness", 0.0) + hinge_stiffness}
     return Scenario.model_validate({**scenario.model_dump(mode="json"), "load": load})
 
 

@@ -261,6 +261,12 @@ class CommissioningRecording(_Section):
     )
     hinge_moment: Real = Field(description="[N m] constant hinge moment during the recording")
     hinge_moment_standard_error: NonNeg = Field(description="[N m]")
+    hinge_stiffness: Real = Field(
+        0.0,
+        description="[N m/rad] aerodynamic spring during the recording (fitted with "
+        "--nuisances hinge_stiffness; else 0)",
+    )
+    hinge_stiffness_standard_error: NonNeg = Field(0.0, description="[N m/rad]")
     residual: dict[str, NonNeg] = Field(
         description="RMS of the fit residual per signal over the RMS of the signal [-] (1 ms mean)"
     )

@@ -493,6 +493,11 @@ class Campaign(Strict):
     hinge_moment: Uniform | None = Field(
         None, description="[N m] each case's constant hinge moment, unknown to the identification"
     )
+    hinge_stiffness: Uniform | None = Field(
+        None,
+        description="[N m/rad] each case's aerodynamic spring, unknown to the identification "
+        "(its commissioning recording draws its own)",
+    )
     commission: bool = Field(
         False,
         description="each case first commissions its own unit from a healthy recording "
@@ -504,6 +509,13 @@ class Campaign(Strict):
     def _hinge_range(cls, dist):
         if dist is not None and (dist.uniform[0] < -5000 or dist.uniform[1] > 5000):
             raise ValueError("uniform range must lie within [-5000, 5000] N m")
+        return dist
+
+    @field_validator("hinge_stiffness")
+    @classmethod
+    def _spring_range(cls, dist):
+        if dist is not None and (dist.uniform[0] < 0 or dist.uniform[1] > 1.0e5):
+            raise ValueError("uniform range must lie within [0, 1e5] N m/rad")
         return dist
 
 

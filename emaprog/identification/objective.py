@@ -456,10 +456,17 @@ def recording_residual(
     hinge_moment: float,
     source: str,
     numerics: Numerics = DEFAULT,
+    hinge_stiffness: float = 0.0,
 ) -> ResidualRecording:
-    """The healthy recording minus the healthy Monitor of ``params`` under its hinge moment."""
+    """The healthy recording minus the healthy Monitor of ``params`` under its hinge moment
+    [N m] and aerodynamic spring [N m/rad] (the commissioning's)."""
+    spring_inputs = rec_inputs._replace(load_stiffness=rec_inputs.load_stiffness + hinge_stiffness)
     mon = monitor.run(
-        params, rec_inputs, monitor_form(healthy_values(), 1.0), numerics, hinge_moment=hinge_moment
+        params,
+        spring_inputs,
+        monitor_form(healthy_values(), 1.0),
+        numerics,
+        hinge_moment=hinge_moment,
     )
     at = recorded_instants(recording.time, rec_inputs.time)
     return ResidualRecording(
