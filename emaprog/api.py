@@ -527,6 +527,24 @@ def identify(
     return Report.from_data(data, folder)
 
 
+def unit_form(params: Parameters) -> dict:
+    """The report's ``form``: the unit's current regulator and sensor chain, and whether the
+    intervals' model-error laws were calibrated for that form (the hysteresis drive with an
+    ideal chain, docs/reference.md, Confidence)."""
+    sensors = params.values()["sensors"]
+    chain = sorted(k for k in parameter_sets.CHAIN_KEYS if k in sensors)
+    regulator = params.spec.drive.regulator
+    calibrated = regulator == "hysteresis" and not chain
+    note = (
+        "the intervals' model-error laws were calibrated for this form"
+        if calibrated
+        else "the intervals' model-error laws are not calibrated for this form "
+        f"({regulator} drive{', sensor chain ' + ', '.join(chain) if chain else ''}): "
+        "verdicts are indicative (docs/tutorials/rig-unit.md, The unit's form)"
+    )
+    return {"regulator": regulator, "sensor_chain": chain, "calibrated": calibrated, "note": note}
+
+
 def report_data(
     result,
     *,
@@ -575,6 +593,7 @@ def report_data(
             "note": load_note,
         },
         "defaults": notes,
+        "form": unit_form(params),
         "ga": {
             "estimate": nested(result.ga_estimate),
             "fitness": result.ga_fitness,

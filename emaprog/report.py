@@ -163,6 +163,9 @@ def identification_summary(report: dict) -> str:
         )
     for fault, why in report["confidence"]["inconclusive"].items():
         lines.append(f"{fault} inconclusive: {why}")
+    form = report.get("form") or {}
+    if form and not form["calibrated"]:
+        lines.append(f"form: {form['note']}")
     for label, keys, unit, fmt in ROWS:
         est = _fmt(_pick(report["estimate"], keys), fmt)
         interval = _pick(report["interval"], keys)
@@ -303,6 +306,8 @@ Fitness {report["fitness"]:.4e} (GA best {ga["fitness"]:.4e}; refined: {ga["refi
 Model runs, {report["elapsed_s"]:.2f} s, GA seed {report["seed"]}.
 
 Nominal-discrepancy correction: {report["correction"]["applied"]} ({report["correction"]["note"]}).
+
+Unit form: {(report.get("form") or {}).get("note", "not recorded")}.
 
 ## Figures
 

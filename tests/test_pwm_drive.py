@@ -119,3 +119,19 @@ def test_a_set_without_drive_and_one_naming_hysteresis_are_one_set():
 def test_dead_time_over_a_tenth_of_the_period_is_refused():
     with pytest.raises(ValueError, match="dead_time"):
         drive_set(pwm_frequency=60000.0, dead_time=2.0e-6)
+
+
+def test_a_report_says_when_its_units_form_was_not_calibrated():
+    """The intervals' model-error laws were calibrated on the hysteresis drive with an ideal
+    chain: a report on that form says so; on a PWM drive (or with chain keys) its ``form``
+    says they are not, and the note names the form."""
+    from emaprog.api import unit_form
+
+    plain = unit_form(parameters.load("default"))
+    assert (
+        plain["calibrated"] and plain["regulator"] == "hysteresis" and plain["sensor_chain"] == []
+    )
+    pwm = unit_form(drive_set())
+    assert not pwm["calibrated"] and "pwm drive" in pwm["note"]
+    logged = unit_form(parameters.load("default-pwm"))
+    assert "speed_source" in logged["sensor_chain"] and "not calibrated" in logged["note"]
