@@ -417,9 +417,11 @@ def fit(recordings: list[Recording], params: Parameters, spring: bool | None = N
         return _fit(recordings, params, spring)[0]
     held, problem, result = _fit(recordings, params, False)
     estimate, error = spring_evidence(problem, result)
+    held = held._replace(evaluations=held.evaluations + len(recordings) + 1)  # the screen's runs
     if not np.any(np.abs(estimate) > np.maximum(SPRING_SCREEN * error, SPRING_SIGNIFICANT / 2)):
         return held
     fitted = _fit(recordings, params, True)[0]
+    fitted = fitted._replace(evaluations=fitted.evaluations + held.evaluations)
     size = np.abs(fitted.hinge_stiffnesses)
     limit = np.maximum(SPRING_EVIDENCE * np.asarray(fitted.stiffness_errors), SPRING_SIGNIFICANT)
     return fitted if np.any(size > limit) else held

@@ -95,7 +95,8 @@ def dead_time_loss(pair_current, inductance, elec):
     """The dead time's mean loss of pair voltage over a period [V]: each leg's terminal
     follows its diode for ``dead_time`` at each of its two edges, ``2 Vdc t_d / T`` on the
     pair against the current; linear within the switching ripple (the current crosses zero
-    inside the period there), ripple ``Vdc T / (4 L_pair)`` at half duty."""
+    inside the period there), taken as ``Vdc T / (4 L_pair)``: the two-level ripple at half
+    duty, an upper bound of the three-level ripple these complementary legs make."""
     full = 2.0 * elec.dc_bus_voltage * elec.dead_time / elec.pwm_period
     ripple = elec.dc_bus_voltage * elec.pwm_period / (4.0 * inductance)
     return full * clip(pair_current / ripple, 1.0)
