@@ -135,3 +135,44 @@ def test_a_report_says_when_its_units_form_was_not_calibrated():
     assert not pwm["calibrated"] and "pwm drive" in pwm["note"]
     logged = unit_form(parameters.load("default-pwm"))
     assert "speed_source" in logged["sensor_chain"] and "not calibrated" in logged["note"]
+
+
+def test_a_unit_off_its_set_keeps_the_drives_gains():
+    """A drive is tuned once, on its set's values: a unit spread by build tolerances (or a
+    warm winding) keeps the set's PI and feed-forward gains, so its loop's crossover moves
+    with its own inductance (1500 Hz x L / L' exactly), and a commissioned unit's set, whose
+    winding values were fitted, loads with the gains written out instead of retuned ones."""
+    base = drive_set()
+    unit = parameters.scaled(
+        base,
+        {"phase_inductance": 1.1, "phase_resistance": 0.9, "back_emf_constant": 1.03},
+        "spread unit",
+    )
+    e, u = base.electrical, unit.electrical
+    assert (u.loop_gain, u.loop_integral, u.emf_feedforward) == (
+        e.loop_gain,
+        e.loop_integral,
+        e.emf_feedforward,
+    )
+    crossover = u.loop_gain / (2.0 * u.phase_inductance) / (2.0 * np.pi)
+    assert crossover == pytest.approx(1500.0 / 1.1, rel=1e-12)
+    spec = parameters.fixed_drive_spec(base)
+    spec["electrical"]["phase_inductance"] *= 1.2
+    spec["electrical"]["back_emf_constant"] *= 0.9
+    reloaded = parameters.derive(parameters.ParameterFile.model_validate(spec), "commissioned")
+    assert reloaded.electrical.loop_gain == e.loop_gain
+    assert reloaded.electrical.emf_feedforward == e.emf_feedforward
+    written = parameters.fixed_drive_spec(parameters.load("default"))["drive"]
+    assert written["regulator"] == "hysteresis" and not set(parameters.GAIN_KEYS) & set(written)
+
+
+def test_the_drives_own_gains_replace_the_derived_ones():
+    """Gains from the drive's configuration are used as given; a feed-forward gain on a drive
+    without feed-forward is a contradiction, refused."""
+    given = drive_set(proportional_gain=30.0, integral_gain=1.0e4, feedforward_gain=0.25)
+    e = given.electrical
+    assert (e.loop_gain, e.loop_integral, e.emf_feedforward) == (30.0, 1.0e4, 0.25)
+    assert given.values()["drive"]["proportional_gain"] == 30.0
+    assert "proportional_gain" not in drive_set().values()["drive"]
+    with pytest.raises(ValueError, match="feedforward_gain"):
+        drive_set(back_emf_feedforward=False, feedforward_gain=0.3)

@@ -74,12 +74,34 @@ class CurrentLoop(_Section):
     computation_delay: Annotated[int, Field(strict=True, ge=0, le=2)] = Field(
         1, description="[PWM periods] from the current sample to the duty it sets"
     )
+    proportional_gain: Pos | None = Field(
+        None,
+        description="[V/A] the PI's proportional gain on the pair current as the drive is set; "
+        "without it 2 pi current_bandwidth (2 L) of this set",
+    )
+    integral_gain: Pos | None = Field(
+        None,
+        description="[V/(A s)] the PI's integral gain as the drive is set; without it "
+        "2 pi current_bandwidth (2 R) of this set",
+    )
+    feedforward_gain: NonNeg | None = Field(
+        None,
+        description="[V s/rad] the back-EMF feed-forward on the measured speed as the drive is "
+        "set; without it 2 k_e of this set when back_emf_feedforward, else 0",
+    )
 
     @model_validator(mode="after")
     def _dead_time_within_period(self):
         if self.dead_time * self.pwm_frequency >= 0.1:
             raise ValueError("dead_time must be under a tenth of the PWM period")
+        if not self.back_emf_feedforward and self.feedforward_gain:
+            raise ValueError("feedforward_gain is given but back_emf_feedforward is false")
         return self
+
+
+#: The drive's gain keys: omitted from a set's provenance while unset (derived from the
+#: bandwidth), so that sets and campaigns written before they existed keep their hashes.
+GAIN_KEYS = ("proportional_gain", "integral_gain", "feedforward_gain")
 
 
 class Mechanical(_Section):
@@ -123,6 +145,10 @@ class AntiAlias(_Section):
     order: Annotated[int, Field(strict=True, ge=1, le=2)] = Field(2, description="[-] 1 or 2")
 
 
+ChannelGain = Annotated[float, Field(strict=True, ge=0.8, le=1.2)]
+ChannelOffset = Annotated[float, Field(strict=True, ge=-1.0, le=1.0)]
+
+
 class Sensors(_Section):
     """Feedback transducers: offset, electrical noise (1 sigma), ADC."""
 
@@ -158,6 +184,14 @@ class Sensors(_Section):
         description="'mean': each logged current is its mean over the controller period "
         "(integrate-and-dump); 'point': its value at the sample instant",
     )
+    current_gains: tuple[ChannelGain, ChannelGain, ChannelGain] = Field(
+        (1.0, 1.0, 1.0),
+        description="[-] each phase-current channel's gain (a, b, c): the logger reads "
+        "gain x current + offset",
+    )
+    current_offsets: tuple[ChannelOffset, ChannelOffset, ChannelOffset] = Field(
+        (0.0, 0.0, 0.0), description="[A] each phase-current channel's offset (a, b, c)"
+    )
 
 
 #: The sensor chain's keys (docs/reference.md, Parameter-set YAML): omitted from a set's
@@ -170,6 +204,8 @@ CHAIN_KEYS = (
     "speed_filter",
     "angle_bits",
     "current_sampling",
+    "current_gains",
+    "current_offsets",
 )
 
 
@@ -329,11 +365,15 @@ class Parameters(NamedTuple):
         """Plain values actually used (for provenance). A set of the first family without a
         ``motor`` section dumps as before, so that its campaigns keep their hashes."""
         values = self.spec.model_dump(mode="json")
+        for key in GAIN_KEYS:
+            if values["drive"][key] is None:
+                del values["drive"][key]
         for key, default in (("motor", Motor()), ("drive", CurrentLoop())):
-            if values.get(key) == default.model_dump(mode="json"):
+            if values.get(key) == _unset_gains(default.model_dump(mode="json")):
                 del values[key]
         for key in CHAIN_KEYS:
-            if values["sensors"][key] == Sensors.model_fields[key].default:
+            default = Sensors.model_fields[key].default
+            if values["sensors"][key] == (list(default) if isinstance(default, tuple) else default):
                 del values["sensors"][key]
         return values
 
@@ -341,6 +381,41 @@ class Parameters(NamedTuple):
     def plant(self) -> Plant:
         """The kernels' view of the unit: electrical, mechanical, controller, sensors."""
         return Plant(self.electrical, self.mechanical, self.controller, self.sensors)
+
+
+def _unset_gains(section: dict) -> dict:
+    """A dumped section without the drive's unset gain keys (:data:`GAIN_KEYS`)."""
+    return {k: v for k, v in section.items() if not (k in GAIN_KEYS and v is None)}
+
+
+def drive_gains(spec: ParameterFile) -> tuple[float, float, float]:
+    """The PWM loop's (proportional [V/A], integral [V/(A s)], feed-forward [V s/rad]) gains:
+    the drive section's own, else derived from its bandwidth and the set's winding."""
+    e, loop = spec.electrical, spec.drive
+    crossover = 2.0 * math.pi * loop.current_bandwidth
+    return (
+        loop.proportional_gain
+        if loop.proportional_gain is not None
+        else crossover * 2.0 * e.phase_inductance,
+        loop.integral_gain
+        if loop.integral_gain is not None
+        else crossover * 2.0 * e.phase_resistance,
+        loop.feedforward_gain
+        if loop.feedforward_gain is not None
+        else (2.0 * e.back_emf_constant if loop.back_emf_feedforward else 0.0),
+    )
+
+
+def fixed_drive_spec(params: Parameters) -> dict:
+    """The set's file as a dict, a PWM drive's gains written out (:func:`drive_gains`), unset
+    gain keys left out. A drive is tuned once, on the values of its set: a unit off the set
+    (build tolerances, a commissioned unit, a warm winding) keeps the drive's gains, and
+    does not retune it with its own inductance, resistance and back-EMF constant."""
+    spec = params.spec.model_dump(mode="json")
+    if params.spec.drive.regulator == "pwm":
+        spec["drive"].update(zip(GAIN_KEYS, drive_gains(params.spec)))
+    spec["drive"] = _unset_gains(spec["drive"])
+    return spec
 
 
 def _filter_fields(spec: AntiAlias | None) -> tuple[float, int]:
@@ -353,7 +428,7 @@ def derive(spec: ParameterFile, source_file: str) -> Parameters:
     e, m, c, s = spec.electrical, spec.mechanical, spec.controller, spec.sensors
     levels = float(2**s.adc_bits)
     loop = spec.drive
-    crossover = 2.0 * math.pi * loop.current_bandwidth
+    proportional, integral, feedforward = drive_gains(spec)
     return Parameters(
         source_file=source_file,
         spec=spec,
@@ -368,9 +443,9 @@ def derive(spec: ParameterFile, source_file: str) -> Parameters:
             REGULATORS.index(loop.regulator),
             1.0 / loop.pwm_frequency,
             loop.dead_time,
-            crossover * 2.0 * e.phase_inductance,
-            crossover * 2.0 * e.phase_resistance,
-            2.0 * e.back_emf_constant if loop.back_emf_feedforward else 0.0,
+            proportional,
+            integral,
+            feedforward,
             loop.computation_delay,
         ),
         mechanical=MechanicalParams(**m.model_dump()),
@@ -397,6 +472,8 @@ def derive(spec: ParameterFile, source_file: str) -> Parameters:
             s.speed_source == "angle",
             2.0 * math.pi / 2**s.angle_bits,
             s.current_sampling == "point",
+            *s.current_gains,
+            *s.current_offsets,
         ),
     )
 
@@ -450,8 +527,9 @@ def load(
 
 def scaled(params: Parameters, factors: dict[str, float], source: str) -> Parameters:
     """The set with some electrical or mechanical values multiplied by ``factors`` [-]
-    (a unit off the set by build tolerances); checked like a file."""
-    spec = params.spec.model_dump(mode="json")
+    (a unit off the set by build tolerances, a warm winding), its drive's gains kept
+    (:func:`fixed_drive_spec`); checked like a file."""
+    spec = fixed_drive_spec(params)
     for name, factor in factors.items():
         section = "electrical" if name in spec["electrical"] else "mechanical"
         spec[section][name] *= factor

@@ -556,6 +556,22 @@ def check_explained(fit_result: Fit, recordings: list[Recording]) -> None:
             )
 
 
+def _drive_note(base: Parameters) -> list[str]:
+    """The change line saying that a PWM drive's gains were written out (none when the base
+    set gives them all, or the drive is a hysteresis regulator)."""
+    from ..config.parameters import GAIN_KEYS, drive_gains
+
+    loop = base.spec.drive
+    if loop.regulator != "pwm" or all(getattr(loop, k) is not None for k in GAIN_KEYS):
+        return []
+    kp, ki, kf = drive_gains(base.spec)
+    return [
+        f"drive: gains written out as the drive has them (proportional_gain {kp:.6g} V/A, "
+        f"integral_gain {ki:.6g} V/(A s), feedforward_gain {kf:.6g} V s/rad, from the base "
+        "set's bandwidth and winding): the commissioned winding does not retune the drive."
+    ]
+
+
 def unit_set(
     base: Parameters,
     fit_result: Fit,
@@ -570,10 +586,10 @@ def unit_set(
     import yaml
 
     from .. import __version__
-    from ..config.parameters import ParameterFile
+    from ..config.parameters import ParameterFile, fixed_drive_spec
     from ..config.yamlfile import parse_mapping
 
-    spec = base.spec.model_dump(mode="json")
+    spec = fixed_drive_spec(base)
     for u in UNKNOWNS:
         spec[u.section][u.name] = float(fit_result.values[u.name])
     fitted = {
@@ -627,6 +643,7 @@ def unit_set(
                 if fit_result.not_determined
                 else ""
             ),
+            *_drive_note(base),
         ],
         commissioning={
             "date": date,

@@ -41,6 +41,7 @@ from pydantic import (
     field_validator,
     model_validator,
 )
+from scipy.stats import trim_mean
 
 from .. import __version__
 from ..config.parameters import Parameters
@@ -671,6 +672,120 @@ def expected_angle_deg(trace_columns: dict[str, np.ndarray], params: Parameters)
     return None
 
 
+#: [-] a sample is read as "one winding idle, two in series" where the smallest recorded
+#: phase current is under this share of the largest (commutations, where the winding that
+#: left the pair still freewheels, are left out).
+IDLE_SHARE = 0.05
+#: [-] ... and the largest is at least this share of its 95th percentile over the recording
+#: (near zero current the channels' offsets and noise, not their gains, make the ratios).
+PAIR_SHARE = 0.2
+#: Fewest such samples per winding (idle, for its offset; idle third, for the gain ratio of
+#: the two others) for the channels to be balanced.
+BALANCE_SAMPLES = 200
+#: [-] two channels' gains further apart than this are not a logger's tolerance: a map or
+#: wiring mistake.
+GAIN_RATIO_LIMIT = 1.2
+#: [-] share of the idle samples cut from each tail of an offset's mean.
+TRIM = 0.1
+#: [standard errors] a gain or offset is corrected only beyond this: on a logger whose
+#: channels are right, the estimates' own noise (2-3 mA, 0.03 % on the example unit) is left
+#: alone; it moved the example unit's commissioned back-EMF constant by 4 %.
+SIGNIFICANT = 3.0
+#: [-] standard error of a median over that of a mean, for normal samples (sqrt(pi / 2)).
+MEDIAN_EFFICIENCY = math.sqrt(math.pi / 2.0)
+
+
+def _robust_sigma(x: np.ndarray) -> float:
+    """The samples' standard deviation from their median absolute deviation (normal samples)."""
+    return 1.4826 * float(np.median(np.abs(x - np.median(x))))
+
+
+def channel_balance(currents: np.ndarray) -> dict:
+    """Each phase-current channel's gain and offset from the recording itself (``currents``
+    (3, n) as mapped: a, b, c). The windings are in star: where one is idle, the other two
+    carry one current in series, ``i_p = -i_q``, whatever the faults (a short circuit
+    changes a winding's impedance, not the series law), and the idle one carries none. A
+    channel reading ``g i + o`` then shows its offset ``o`` while its winding is idle and
+    the gain ratio ``g_p / g_q = -(r_p - o_p) / (r_q - o_q)`` while the two others conduct:
+    over the samples of :data:`IDLE_SHARE` and :data:`PAIR_SHARE` (trimmed means of the idle
+    readings, medians of the ratios), the three ratios
+    solved for the gains in least squares with their geometric mean 1 (the common scale of
+    the three is not in the currents; commissioning puts it in ``back_emf_constant``).
+
+    A gain or offset is corrected only where it is :data:`SIGNIFICANT`. Returns ``{"gains":
+    {a, b, c}, "offsets": {a, b, c} [A]`` (as corrected: 1 and 0 where not), ``"estimate"``
+    (every gain and offset with its standard error), ``"samples": {a, b, c}, "applied"}``;
+    ``applied`` is False, with a ``note``, when nothing was significant, a winding was idle on
+    fewer than :data:`BALANCE_SAMPLES` samples or two gains are further apart than
+    :data:`GAIN_RATIO_LIMIT`.
+    """
+    magnitude = np.abs(currents)
+    order = np.argsort(magnitude, axis=0)
+    idle = order[0]
+    columns = np.arange(currents.shape[1])
+    largest = magnitude[order[2], columns]
+    scale = float(np.percentile(largest, 95)) if largest.size else 0.0
+    quiet = (magnitude[idle, columns] < IDLE_SHARE * largest) & (largest > PAIR_SHARE * scale)
+    counts = [int(np.count_nonzero(quiet & (idle == x))) for x in range(3)]
+    names = tuple("abc")
+    result: dict[str, Any] = {"samples": dict(zip(names, counts))}
+    if min(counts) < BALANCE_SAMPLES:
+        result.update(
+            gains=dict.fromkeys(names, 1.0),
+            offsets=dict.fromkeys(names, 0.0),
+            applied=False,
+            note=f"a winding idle on fewer than {BALANCE_SAMPLES} samples with the two "
+            "others conducting: channels taken as recorded",
+        )
+        return result
+    # the idle channel's mean, its tails trimmed (a mean, not a median: an ADC's steps are
+    # often coarser than an offset, and its noise spreads them out only on average)
+    idle_readings = [currents[x, quiet & (idle == x)] for x in range(3)]
+    offsets = np.array([float(trim_mean(r, TRIM)) for r in idle_readings])
+    offset_errors = np.array([_robust_sigma(r) / math.sqrt(r.size) for r in idle_readings])
+    centred = currents - offsets[:, None]
+    # log g_p - log g_q = log(ratio) for each idle third; rows (a-b | c idle), (b-c | a), (c-a | b)
+    system = np.array([[1.0, -1.0, 0.0], [0.0, 1.0, -1.0], [-1.0, 0.0, 1.0], [1.0, 1.0, 1.0]])
+    logs, log_errors = [], []
+    for p, q, third in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
+        on = quiet & (idle == third)
+        ratios = np.log(np.abs(centred[p, on] / centred[q, on]))
+        logs.append(float(np.median(ratios)))
+        log_errors.append(MEDIAN_EFFICIENCY * _robust_sigma(ratios) / math.sqrt(ratios.size))
+    solve = np.linalg.pinv(system)[:, :3]
+    log_gains = solve @ np.array(logs)
+    gain_errors = np.sqrt(np.diag(solve @ np.diag(np.square(log_errors)) @ solve.T))
+    gains = np.exp(log_gains)
+    # each correction only where it is significant: a channel read right is left as read
+    use_offset = np.abs(offsets) > SIGNIFICANT * offset_errors
+    use_gain = np.abs(log_gains) > SIGNIFICANT * gain_errors
+    plausible = bool(gains.max() / gains.min() <= GAIN_RATIO_LIMIT)
+    result.update(
+        gains={n: round(float(g), 6) if u else 1.0 for n, g, u in zip(names, gains, use_gain)},
+        offsets={
+            n: round(float(o), 6) if u else 0.0 for n, o, u in zip(names, offsets, use_offset)
+        },
+        estimate={
+            "gains": {n: round(float(g), 6) for n, g in zip(names, gains)},
+            "gain_errors": {n: round(float(e), 6) for n, e in zip(names, gain_errors * gains)},
+            "offsets": {n: round(float(o), 6) for n, o in zip(names, offsets)},
+            "offset_errors": {n: round(float(e), 6) for n, e in zip(names, offset_errors)},
+        },
+        applied=plausible and bool(np.any(use_offset) or np.any(use_gain)),
+    )
+    if not plausible:
+        result.update(gains=dict.fromkeys(names, 1.0), offsets=dict.fromkeys(names, 0.0))
+        result["note"] = (
+            f"two channels' gains over {GAIN_RATIO_LIMIT:g} times apart: channels taken as "
+            "recorded (a scale or wiring mistake in the map?)"
+        )
+    elif not result["applied"]:
+        result["note"] = (
+            f"no gain or offset beyond {SIGNIFICANT:g} standard errors: channels taken as recorded"
+        )
+    return result
+
+
 #: Ratios of a recorded channel to what the other channels say it should be, and the
 #: mapping mistake each one points to (:func:`check_plausible`).
 _SUSPECTS = (
@@ -836,6 +951,12 @@ def read_recording(
             ),
         }
     phases = all(k in out for k in PHASE_COLUMNS)
+    balance = None
+    if phases and "current" not in out:
+        balance = channel_balance(np.vstack([out[k] for k in PHASE_COLUMNS]))
+        if balance["applied"]:
+            for k, x in zip(PHASE_COLUMNS, "abc"):
+                out[k] = (out[k] - balance["offsets"][x]) / balance["gains"][x]
     if "current" in out:
         how, sign = "recorded", np.sign(out["current"])
     elif "torque" in out:
@@ -892,4 +1013,6 @@ def read_recording(
     }
     if identity is not None:
         meta["phase_identity"] = identity
+    if balance is not None:
+        meta["current_channels"] = balance
     return Trace(checked, meta)

@@ -329,7 +329,9 @@ def simulate_reference(drive, noise, plant, faults, substeps, out, energy, state
             a0, a1 = advance(a0, a1, i[0], bank[F_CURRENT])
             b0, b1 = advance(b0, b1, i[1], bank[F_CURRENT])
             c0, c1 = advance(c0, c1, i[2], bank[F_CURRENT])
-            line_a, line_b, line_c = a0, b0, c0
+            line_a = sens.current_gain_a * a0 + sens.current_offset_a
+            line_b = sens.current_gain_b * b0 + sens.current_offset_b
+            line_c = sens.current_gain_c * c0 + sens.current_offset_c
             if point:
                 acc_eq = equivalent_current(line_a, line_b, line_c, torque)
                 acc_a, acc_b, acc_c, acc_t = line_a, line_b, line_c, torque

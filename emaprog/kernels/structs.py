@@ -79,6 +79,12 @@ class SensorParams(NamedTuple):
     speed_from_angle: bool  # speed differenced from the resolver's motor angle
     angle_lsb: float  # [rad] resolver step: 2 pi / 2^angle_bits
     current_point: bool  # currents point-sampled at k T (else their mean over the period)
+    current_gain_a: float  # [-] phase-current channels as the logger reads them:
+    current_gain_b: float  #     gain x current + offset
+    current_gain_c: float
+    current_offset_a: float  # [A]
+    current_offset_b: float
+    current_offset_c: float
 
 
 class FilterCoefficients(NamedTuple):
