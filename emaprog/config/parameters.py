@@ -365,9 +365,7 @@ class Parameters(NamedTuple):
         """Plain values actually used (for provenance). A set of the first family without a
         ``motor`` section dumps as before, so that its campaigns keep their hashes."""
         values = self.spec.model_dump(mode="json")
-        for key in GAIN_KEYS:
-            if values["drive"][key] is None:
-                del values["drive"][key]
+        values["drive"] = _unset_gains(values["drive"])
         for key, default in (("motor", Motor()), ("drive", CurrentLoop())):
             if values.get(key) == _unset_gains(default.model_dump(mode="json")):
                 del values[key]

@@ -91,13 +91,9 @@ FIT_SUBSTEPS = 16
 
 def fit_substeps(params: Parameters) -> int:
     """The Monitor step of the fit: :data:`FIT_SUBSTEPS` under the hysteresis drive, whose
-    Monitor barely depends on its step (16 against 4 steps a period: 0.015 A rms on the
-    current after the error's 1 ms filter, 12 chirps); under a PWM drive identification's
-    own, because there the two Monitors differ by 0.045 A and a unit fitted on the one was
-    then identified on the other. Measured on robustness-pwm (200 cases, 16 -> 4):
-    commissioned k_e median error 3.8 -> 2.9 %, motor inertia 5.2 -> 3.3 %, stiffness 8.1 ->
-    4.5 %, friction within tolerance 30 -> 39 %, backlash 32 -> 37 %, inconclusive 57-61 ->
-    59-62 %."""
+    Monitor barely depends on its step; under a PWM drive identification's own, because
+    there the Monitor does depend on it, and a unit fitted on one step's Monitor was then
+    identified on another's (measured: docs/reference.md, Commissioning)."""
     if params.spec.drive.regulator == "pwm":
         return DEFAULT.monitor_substeps
     return FIT_SUBSTEPS

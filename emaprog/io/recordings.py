@@ -41,7 +41,7 @@ from pydantic import (
     field_validator,
     model_validator,
 )
-from scipy.stats import trim_mean
+from scipy.stats import median_abs_deviation, trim_mean
 
 from .. import __version__
 from ..config.parameters import Parameters
@@ -695,11 +695,6 @@ SIGNIFICANT = 3.0
 MEDIAN_EFFICIENCY = math.sqrt(math.pi / 2.0)
 
 
-def _robust_sigma(x: np.ndarray) -> float:
-    """The samples' standard deviation from their median absolute deviation (normal samples)."""
-    return 1.4826 * float(np.median(np.abs(x - np.median(x))))
-
-
 def channel_balance(currents: np.ndarray) -> dict:
     """Each phase-current channel's gain and offset from the recording itself (``currents``
     (3, n) as mapped: a, b, c). The windings are in star: where one is idle, the other two
@@ -742,7 +737,9 @@ def channel_balance(currents: np.ndarray) -> dict:
     # often coarser than an offset, and its noise spreads them out only on average)
     idle_readings = [currents[x, quiet & (idle == x)] for x in range(3)]
     offsets = np.array([float(trim_mean(r, TRIM)) for r in idle_readings])
-    offset_errors = np.array([_robust_sigma(r) / math.sqrt(r.size) for r in idle_readings])
+    offset_errors = np.array(
+        [float(median_abs_deviation(r, scale="normal")) / math.sqrt(r.size) for r in idle_readings]
+    )
     centred = currents - offsets[:, None]
     # log g_p - log g_q = log(ratio) for each idle third; rows (a-b | c idle), (b-c | a), (c-a | b)
     system = np.array([[1.0, -1.0, 0.0], [0.0, 1.0, -1.0], [-1.0, 0.0, 1.0], [1.0, 1.0, 1.0]])
@@ -751,7 +748,11 @@ def channel_balance(currents: np.ndarray) -> dict:
         on = quiet & (idle == third)
         ratios = np.log(np.abs(centred[p, on] / centred[q, on]))
         logs.append(float(np.median(ratios)))
-        log_errors.append(MEDIAN_EFFICIENCY * _robust_sigma(ratios) / math.sqrt(ratios.size))
+        log_errors.append(
+            MEDIAN_EFFICIENCY
+            * float(median_abs_deviation(ratios, scale="normal"))
+            / math.sqrt(ratios.size)
+        )
     solve = np.linalg.pinv(system)[:, :3]
     log_gains = solve @ np.array(logs)
     gain_errors = np.sqrt(np.diag(solve @ np.diag(np.square(log_errors)) @ solve.T))
