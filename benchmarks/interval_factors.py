@@ -9,7 +9,7 @@ of a set not fitted to the unit (``shipped``; campaigns without commissioning). 
 from healthy, ``L`` the estimate's fault load (:func:`emaprog.faults.fault_load`), and
 the interval is :func:`emaprog.identification.confidence.quantity_interval`'s.
 
-Per basis (twin, unit, shipped) and quantity (each short-circuit phase on its own: on the twins the
+Per basis (twin, unit, shipped, form) and quantity (each short-circuit phase on its own: on the twins the
 eccentricity pulls a healthy phase C's estimate four times as far as phase B's, 90th
 percentile 0.047 vs 0.010 per unit of zeta; the eccentricity phase counted where the true
 zeta reaches the incipient threshold, as the campaign summary does), the
@@ -30,8 +30,9 @@ proposed law, and the coverage it gives on each campaign (90 % Wilson interval: 
 cases a perfectly calibrated interval still lands outside 85-95 % about one time in four),
 on healthy and on faulty truths.
 
-The nuisances estimated beside the faults (hinge moment, winding resistance factor) get a
-law the same way, on the unit basis only (twin campaigns do not estimate them), one group
+The nuisances estimated beside the faults (hinge moment, winding resistance factor, the
+aerodynamic spring) get a law the same way, on the unit basis (used by every basis but the
+form's) and on the form basis (its own; twin campaigns do not estimate them), one group
 (their truth is never the default), deviation from their default, their true value in the
 case row (the resistance: the unit's over the set identified with).
 
@@ -58,7 +59,7 @@ from emaprog.identification.confidence import BASES, Z90, quantity_error, quanti
 from emaprog.identification.objective import NUISANCE_DEFAULTS
 
 TARGET = 0.90
-FACTORS = np.round(np.geomspace(1.0, 8.0, 61), 3)
+FACTORS = np.round(np.geomspace(1.0, 32.0, 101), 3)  # steps of 2^(1/20)
 #: the nuisances' (their linearised error is an order of magnitude short on spread units)
 NUISANCE_FACTORS = np.round(np.geomspace(1.0, 50.0, 71), 3)
 SHARES = np.round(np.arange(0.0, 0.1001, 0.0025), 4)
@@ -306,7 +307,7 @@ def write_laws(rows: list[dict], directories: list[Path], path: Path = LAWS_FILE
         )
     for row in rows:
         basis, name = row["basis"], row["quantity"]
-        if name in NUISANCE_DEFAULTS:
+        if name in NUISANCE_DEFAULTS and basis != "form":  # the form's laws hold its own
             if basis != "unit":
                 continue
             basis = "nuisance"

@@ -10,7 +10,6 @@ their cases: that is what makes them resumable). Errors in user input raise
 
 from __future__ import annotations
 
-import math
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -21,6 +20,7 @@ import numpy as np
 import pandas as pd
 
 from . import __version__
+from .campaign.run import SweepOutcome
 from .config import parameters as parameter_sets
 from .config.parameters import Parameters
 from .config.scenario import (
@@ -31,12 +31,11 @@ from .config.scenario import (
     parse_scenario,
 )
 from .errors import InputError
-from .faults import PHASE_FAULT, QUANTITIES, flatten, nested
+from .faults import flatten
 from .identification import check_sampling, identify_trace
-from .identification import result as verdicts
-from .identification.confidence import confidence_record
 from .identification.defaults import resolve as resolve_settings
 from .identification.objective import low_pass
+from .identification.reporting import check_phase_identity, name_phases_as_recorded, report_data
 from .io.recordings import check_at_rest, check_plausible
 from .io.storage import (
     Trace,
@@ -518,100 +517,13 @@ def identify(
         scenario_name=basis.name if basis is not None else None,
         inspection=inspection,
     )
-    _name_phases_as_recorded(data, (measured.metadata or {}).get("phase_identity"))
-    _check_phase_identity(data, params)
+    name_phases_as_recorded(data, (measured.metadata or {}).get("phase_identity"))
+    check_phase_identity(data, params)
     if output is None:
         return Report.from_data(data)
     folder = Path(output)
     _write_report(data, result, measured, folder)
     return Report.from_data(data, folder)
-
-
-def unit_form(params: Parameters) -> dict:
-    """The report's ``form``: the unit's current regulator and sensor chain, and whether the
-    intervals' model-error laws were calibrated for that form (the hysteresis drive with an
-    ideal chain, docs/reference.md, Confidence)."""
-    sensors = params.values()["sensors"]
-    chain = sorted(k for k in parameter_sets.CHAIN_KEYS if k in sensors)
-    regulator = params.spec.drive.regulator
-    calibrated = regulator == "hysteresis" and not chain
-    note = (
-        "the intervals' model-error laws were calibrated for this form"
-        if calibrated
-        else "the intervals' model-error laws are not calibrated for this form "
-        f"({regulator} drive{', sensor chain ' + ', '.join(chain) if chain else ''}): "
-        "verdicts are indicative (docs/tutorials/rig-unit.md, The unit's form)"
-    )
-    return {"regulator": regulator, "sensor_chain": chain, "calibrated": calibrated, "note": note}
-
-
-def report_data(
-    result,
-    *,
-    settings: IdentifySettings,
-    params: Parameters,
-    truth: dict[str, float] | None,
-    load,
-    load_note: str,
-    notes: dict,
-    source: str,
-    scenario_name: str | None,
-    inspection: dict | None,
-) -> dict:
-    """The ``report.json`` content of one identification (docs/reference.md, Identification
-    report): the verdict (:func:`~emaprog.identification.result.judge`, the same a campaign
-    row takes), estimates and intervals in the report's shape, and the provenance."""
-    verdict = verdicts.judge(result, settings.estimate, params, truth)
-    health, error, phase = verdict.health, verdict.error, verdict.phase
-    confidence = confidence_record(result.confidence)
-    confidence["isolation"] = verdict.isolation
-    return {
-        "estimate": nested(result.estimate),
-        "truth": nested(truth) if truth is not None else None,
-        "error": nested(error) if error is not None else None,
-        "health": health,
-        "interval": nested(
-            {
-                q: list(result.confidence.interval[q]) if q in result.confidence.interval else None
-                for q in QUANTITIES
-            }
-        ),
-        f"{PHASE_FAULT}_phase": phase,
-        "nuisance": {name: result.estimate[name] for name in settings.nuisances or []},
-        "nuisance_interval": {
-            name: [x if math.isfinite(x) else None for x in result.confidence.interval[name]]
-            for name in settings.nuisances or []
-        },
-        "fitness": result.fitness,
-        "confidence": confidence,
-        "correction": {
-            "applied": result.objective.correction.applied,
-            "note": result.objective.correction.note,
-        },
-        "load": {
-            "applied": load.model_dump(mode="json") if load is not None else None,
-            "note": load_note,
-        },
-        "defaults": notes,
-        "form": unit_form(params),
-        "ga": {
-            "estimate": nested(result.ga_estimate),
-            "fitness": result.ga_fitness,
-            "generations": result.generations,
-            "stopped_by": result.stopped_by,
-            "refined": result.refined,
-            "logbook": result.logbook,
-        },
-        "evaluations": result.evaluations,
-        "elapsed_s": result.elapsed_s,
-        "seed": settings.ga.seed,
-        "settings": settings.model_dump(mode="json"),
-        "trace": source,
-        "scenario": scenario_name,
-        "parameters": params.source_file,
-        "inspection": inspection,
-        "emaprog_version": __version__,
-    }
 
 
 def _write_report(data: dict, result, measured: Trace, folder: Path) -> None:
@@ -640,69 +552,6 @@ def _write_report(data: dict, result, measured: Trace, folder: Path) -> None:
     data["figures"] = {name: path.name for name, path in figures.items()}
     write_json(folder / "report.json", data)
     (folder / "report.md").write_text(report_markdown(data))
-
-
-def _name_phases_as_recorded(data: dict, identity: dict | None) -> None:
-    """Name the windings as the recording does: the models' winding x is the recording's
-    ``identity["windings"][x]`` (docs/reference.md, "Phase identity"). The report's
-    per-phase values, the named phase and its isolation are renamed in place;
-    ``phase_identity`` and ``phase_channels`` (recording phase -> logger column) added."""
-    if identity is None:
-        return
-    data["phase_identity"] = identity
-    if not identity["trusted"]:
-        data["phase_identity"]["note"] = (
-            f"the recorded phase currents could not be matched to the model's windings "
-            f"(agreement {identity['agreement']:.2f}, runner-up {identity['runner_up']:.2f}): "
-            "phases are named by the model's convention"
-        )
-        return
-    rename = {w: key.removeprefix("current_") for w, key in identity["windings"].items()}
-    data["phase_channels"] = {rename[w]: identity["channels"][w] for w in rename}
-    if all(rename[w] == w for w in rename):
-        return
-    for tree in (data["estimate"], data["interval"], data["ga"]["estimate"]):
-        if isinstance(tree.get(PHASE_FAULT), dict):
-            renamed = {rename[w]: v for w, v in tree[PHASE_FAULT].items()}
-            tree[PHASE_FAULT] = {w: renamed[w] for w in sorted(renamed)}
-    if data.get(f"{PHASE_FAULT}_phase"):
-        data[f"{PHASE_FAULT}_phase"] = rename[data[f"{PHASE_FAULT}_phase"]]
-    isolation = data["confidence"].get("isolation")
-    if isolation:
-        isolation["phase"], isolation["runner_up"] = (
-            rename[isolation["phase"]],
-            rename[isolation["runner_up"]],
-        )
-    errors = data["confidence"]["standard_error"]
-    if f"{PHASE_FAULT}_a" in errors:
-        errors.update({f"{PHASE_FAULT}_{rename[w]}": errors[f"{PHASE_FAULT}_{w}"] for w in rename})
-
-
-def _check_phase_identity(data: dict, params: Parameters) -> None:
-    """Compare the inspection's channel-to-winding identity with the unit's commissioning
-    recordings' (``phase_identity.commissioning``): a rewired or re-mapped logger is said."""
-    record = params.spec.commissioning
-    found = data.get("phase_identity")
-    if record is None or not found or not found.get("trusted"):
-        return
-    known = [
-        r.phase_identity
-        for r in record.recordings
-        if r.phase_identity and r.phase_identity.get("trusted")
-    ]
-    if not known:
-        return
-    same = all(k["channels"] == found["channels"] for k in known)
-    found["commissioning"] = (
-        "agrees with the unit's commissioning recordings"
-        if same
-        else "DIFFERS from the unit's commissioning recordings (commissioning: "
-        + ", ".join(f"winding {w} on {c}" for w, c in known[0]["channels"].items())
-        + "; now: "
-        + ", ".join(f"winding {w} on {c}" for w, c in found["channels"].items())
-        + "): the logger was rewired or the map changed; the phase is named as this "
-        "recording's channels say"
-    )
 
 
 def _load_of(embedded: Scenario | None, chosen: Scenario | None, settings: IdentifySettings):
@@ -786,71 +635,6 @@ def calibrate(
     )
 
 
-class SweepOutcome(NamedTuple):
-    """A campaign's result: its folder, summary.json content, case table and this run's counts."""
-
-    folder: Path
-    summary: dict
-    ran: int  # cases run by this call (finished or failed)
-    skipped: int  # cases already finished by an earlier run (--resume)
-    failed: int  # cases without a result (see RESULTS_DIR/failures/)
-    regressions: list[str]  # figures worse than --baseline beyond their tolerance
-    cases: (
-        pd.DataFrame
-    )  # one row per finished case (case columns (docs/reference.md, Campaign results))
-
-
-def _read_baseline(path: Path) -> dict:
-    import json
-
-    from .campaign.summary import regression_figures
-
-    if not path.is_file():
-        raise InputError(path, "baseline file not found (give a summary.json of an earlier sweep)")
-    try:
-        data = json.loads(path.read_text())
-        regression_figures(data)
-    except (json.JSONDecodeError, UnicodeDecodeError):
-        raise InputError(
-            path, "baseline is not valid JSON (give a summary.json of an earlier sweep)"
-        ) from None
-    except (KeyError, TypeError, AttributeError):
-        raise InputError(
-            path,
-            "baseline lacks the summary keys errors, detection, false_alarms, "
-            "isolation (give a summary.json of an earlier sweep)",
-        ) from None
-    return data
-
-
-def _open_store(
-    store,
-    source: Path,
-    digest: str,
-    meta: dict,
-    definition: dict,
-    base: Scenario,
-    params: Parameters,
-    resume: bool,
-    count: int,
-) -> tuple[list[int], set[int]]:
-    """Open a results folder's case store (its manifest: ``meta``, the definition, base
-    scenario and parameter values); the case indices still to run, and the finished ones."""
-    store.open(
-        source,
-        digest,
-        {
-            **meta,
-            **definition,
-            "base_scenario": base.model_dump(mode="json"),
-            "parameter_values": params.values(),
-        },
-        resume,
-    )
-    finished = set(store.finished())
-    return [k for k in range(count) if k not in finished], finished
-
-
 def sweep(
     campaign_path: str | Path,
     output: str | Path | None = None,
@@ -869,130 +653,31 @@ def sweep(
     after stopping the workers. With ``baseline`` the summary is compared with an earlier one.
     """
     from .campaign import cases as campaigns
+    from .campaign.run import read_baseline, run_campaign
     from .config.scenario import load_campaign
 
     campaign_path = Path(campaign_path)
     campaign, base = load_campaign(campaign_path)
     params = campaigns.load_parameters(campaign_path, campaign, base)
-    reference_summary = _read_baseline(Path(baseline)) if baseline is not None else None
+    reference_summary = read_baseline(Path(baseline)) if baseline is not None else None
     client = campaigns.connect(scheduler) if scheduler is not None else None
     try:
-        return _sweep(
+        return run_campaign(
             campaign_path,
             campaign,
             base,
             params,
             output,
-            workers,
-            client,
-            resume,
-            baseline,
-            reference_summary,
-            show_progress,
+            workers=workers,
+            client=client,
+            resume=resume,
+            baseline=baseline,
+            reference_summary=reference_summary,
+            show_progress=show_progress,
         )
     finally:
         if client is not None:
             client.close()
-
-
-def _sweep(
-    campaign_path: Path,
-    campaign,
-    base,
-    params,
-    output,
-    workers,
-    client,
-    resume,
-    baseline,
-    reference_summary,
-    show_progress,
-) -> SweepOutcome:
-    import time
-
-    from .campaign import cases as campaigns
-    from .campaign.summary import ACCURACY, compare, error_values, markdown, summarize
-    from .report import plot_error_histograms, plot_parity
-
-    digest = campaigns.campaign_hash(campaign, base, params)
-    folder = Path(output) if output else Path("out") / campaign.name
-    store = campaigns.CaseStore(folder)
-    meta = {
-        "campaign": campaign.name,
-        "campaign_file": str(campaign_path),
-        "campaign_hash": digest,
-        "planned": campaign.cases,
-        "seed": campaign.seed,
-        "scenario": base.name,
-        "parameters": params.source_file,
-        "emaprog_version": __version__,
-    }
-    todo, finished = _open_store(
-        store,
-        campaign_path,
-        digest,
-        meta,
-        {"campaign_definition": campaign.model_dump(mode="json")},
-        base,
-        params,
-        resume,
-        campaign.cases,
-    )
-    specs = campaigns.case_specs(campaign, base, params, digest, todo)
-    workers = campaigns.worker_count(workers, len(todo))
-    start = time.perf_counter()
-    counts = campaigns.execute(
-        specs,
-        store,
-        meta,
-        len(todo),
-        workers,
-        client,
-        f"sweep {campaign.name}",
-        len(finished),
-        show_progress,
-    )
-    wall_s = time.perf_counter() - start
-
-    frame = store.read()
-    if frame.empty:
-        raise RuntimeError(
-            f"no case of campaign '{campaign.name}' finished; the errors are in {store.failures}"
-        )
-    summary = {
-        **meta,
-        "finished": int(len(frame)),
-        "failed": len(store.failed()),
-        **summarize(frame, params),
-    }
-    summary["run"] = {
-        "ran": counts["done"] + counts["failed"],
-        "skipped": len(finished),
-        "wall_s": wall_s,
-        "workers": None if client else workers,
-        "scheduler": client.scheduler.address if client else None,
-    }
-    errors = {q: error_values(frame, q, params) for q in ACCURACY}
-    summary["figures"] = {
-        "parity": plot_parity(frame, folder / "parity.png").name,
-        "errors": plot_error_histograms(
-            errors, {q: a.tolerance for q, a in ACCURACY.items()}, folder / "errors.png"
-        ).name,
-    }
-    regressions = compare(summary, reference_summary) if reference_summary is not None else []
-    if reference_summary is not None:
-        summary["regression"] = {"baseline": str(baseline), "worse": regressions}
-    write_json(folder / "summary.json", summary)
-    (folder / "summary.md").write_text(markdown(summary))
-    return SweepOutcome(
-        folder,
-        summary,
-        counts["done"] + counts["failed"],
-        len(finished),
-        summary["failed"],
-        regressions,
-        frame,
-    )
 
 
 def _history_source(history_path: Path, simulate: bool) -> str:
@@ -1048,6 +733,7 @@ def trend(
     ``trend.json``, ``trend.md`` and ``trend.png``; see :mod:`emaprog.prognosis.fit`.
     """
     from .campaign import cases as campaigns
+    from .campaign.run import open_store
     from .config.scenario import load_history
     from .prognosis import history as histories
     from .prognosis.analysis import analyse
@@ -1071,7 +757,7 @@ def trend(
             "actuator": history.actuator,
             "emaprog_version": __version__,
         }
-        todo, finished = _open_store(
+        todo, finished = open_store(
             store,
             history_path,
             digest,

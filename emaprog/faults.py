@@ -36,7 +36,7 @@ __all__ = [
     "FAULT_NAMES",
     "HEALTHY",
     "PHASES",
-    "PHASE_FAULT",
+    "PHASE_FAULTS",
     "QUANTITIES",
     "Fault",
     "ModelError",
@@ -269,8 +269,8 @@ FAULT_NAMES: tuple[str, ...] = tuple(FAULTS)
 #: Every scalar quantity, in kernel (FaultParams) order.
 QUANTITIES: dict[str, Quantity] = {q.name: q for f in CATALOGUE for q in f.quantities}
 PHASES = "abc"
-#: The fault that sits on one motor phase: its isolation (which phase) is reported too.
-PHASE_FAULT = next(f.name for f in CATALOGUE if f.layout == "per_phase")
+#: The faults that sit on one motor phase: for each, which phase is reported too.
+PHASE_FAULTS: tuple[str, ...] = tuple(f.name for f in CATALOGUE if f.layout == "per_phase")
 
 
 class Nuisance(NamedTuple):
@@ -534,8 +534,9 @@ def fault_load(values, incipient: dict[str, float]):
     return float(total) if np.ndim(total) == 0 else total
 
 
-def worst_phase(values: dict[str, float]) -> str | None:
-    """The phase with the largest shorted fraction, or None if all are zero."""
-    fractions = {str(q.key): values[q.name] for q in FAULTS[PHASE_FAULT].quantities}
+def worst_phase(values: dict[str, float], fault: str) -> str | None:
+    """The phase with the per-phase ``fault``'s largest value (a short circuit: its shorted
+    fraction), or None if all are zero."""
+    fractions = {str(q.key): values[q.name] for q in FAULTS[fault].quantities}
     phase = max(fractions, key=lambda p: fractions[p])
     return phase if fractions[phase] > 0 else None

@@ -10,7 +10,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .faults import CATALOGUE, FAULTS, NUISANCES, PHASE_FAULT, QUANTITIES, Quantity  # noqa: E402
+from .faults import CATALOGUE, FAULTS, NUISANCES, PHASE_FAULTS, QUANTITIES, Quantity  # noqa: E402
 from .identification.confidence import MIN_PHASE_CONFIDENCE  # noqa: E402
 from .io.storage import Trace  # noqa: E402
 
@@ -145,22 +145,24 @@ def _fmt(value, fmt: str) -> str:
 def identification_summary(report: dict) -> str:
     health = ", ".join(f"{fault} {verdict}" for fault, verdict in report["health"].items())
     lines = [f"health: {health}"]
-    phase = report.get(f"{PHASE_FAULT}_phase")
-    isolation = report["confidence"]["isolation"]
-    if report["health"].get(PHASE_FAULT) in ("incipient", "degraded") and not phase and isolation:
-        lines.append(
-            f"{FAULTS[PHASE_FAULT].label}: phase not determined, "
-            f"{isolation['phase'].upper()} or {isolation['runner_up'].upper()} "
-            f"(confidence {isolation['confidence']:.0%})"
-        )
-    if report["health"].get(PHASE_FAULT) in ("incipient", "degraded") and phase:
-        isolation = report["confidence"]["isolation"]
-        channel = (report.get("phase_channels") or {}).get(phase)
-        lines.append(
-            f"{FAULTS[PHASE_FAULT].label} on phase {phase.upper()}"
-            + (f" (logger channel {channel})" if channel else "")
-            + (f" (confidence {isolation['confidence']:.0%})" if isolation else "")
-        )
+    for fault in PHASE_FAULTS:
+        if report["health"].get(fault) not in ("incipient", "degraded"):
+            continue
+        phase = report.get(f"{fault}_phase")
+        isolation = report["confidence"]["isolation"].get(fault)
+        if not phase and isolation:
+            lines.append(
+                f"{FAULTS[fault].label}: phase not determined, "
+                f"{isolation['phase'].upper()} or {isolation['runner_up'].upper()} "
+                f"(confidence {isolation['confidence']:.0%})"
+            )
+        if phase:
+            channel = (report.get("phase_channels") or {}).get(phase)
+            lines.append(
+                f"{FAULTS[fault].label} on phase {phase.upper()}"
+                + (f" (logger channel {channel})" if channel else "")
+                + (f" (confidence {isolation['confidence']:.0%})" if isolation else "")
+            )
     for fault, why in report["confidence"]["inconclusive"].items():
         lines.append(f"{fault} inconclusive: {why}")
     form = report.get("form") or {}
@@ -204,23 +206,29 @@ def _operating_lines(report: dict) -> list[str]:
 
 
 def _phase_sentence(report: dict) -> str:
-    """Which phase is shorted, only when a short circuit is flagged (incipient or degraded)."""
-    if report["health"].get(PHASE_FAULT) not in ("incipient", "degraded"):
-        return "No short circuit flagged: no faulty phase named."
-    phase = report.get(f"{PHASE_FAULT}_phase")
-    isolation = report["confidence"]["isolation"]
+    """Which phase each per-phase fault is on, only when it is flagged (incipient or
+    degraded)."""
+    return " ".join(_fault_phase_sentence(report, fault) for fault in PHASE_FAULTS)
+
+
+def _fault_phase_sentence(report: dict, fault: str) -> str:
+    label = fault.replace("_", " ")
+    if report["health"].get(fault) not in ("incipient", "degraded"):
+        return f"No {label} flagged: no faulty phase named."
+    phase = report.get(f"{fault}_phase")
+    isolation = report["confidence"]["isolation"].get(fault)
     if phase is None and isolation is not None:
         return (
-            f"Short circuit flagged, phase not determined: {isolation['phase'].upper()} or "
-            f"{isolation['runner_up'].upper()} (confidence {isolation['confidence']:.0%} "
+            f"{label.capitalize()} flagged, phase not determined: {isolation['phase'].upper()} "
+            f"or {isolation['runner_up'].upper()} (confidence {isolation['confidence']:.0%} "
             f"for {isolation['phase'].upper()}, below the {MIN_PHASE_CONFIDENCE:.0%} a named "
             "phase needs)."
         )
     if phase is None:
-        return "Short circuit flagged, phase not determined."
+        return f"{label.capitalize()} flagged, phase not determined."
     channel = (report.get("phase_channels") or {}).get(phase)
     named = f"{phase.upper()}" + (f" (logger channel `{channel}`)" if channel else "")
-    sentence = f"Faulty phase (largest shorted fraction): {named}."
+    sentence = f"Faulty phase (largest {label}): {named}."
     check = (report.get("phase_identity") or {}).get("commissioning")
     if check:
         sentence += f" Channel identity {check}."

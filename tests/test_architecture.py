@@ -121,3 +121,23 @@ def test_scenario_and_parameter_set_resolution(tmp_path):
     frame = emaprog.simulate(ROOT / "configs" / "chirp-nominal.yaml")
     assert resolve_sources(frame).params.spec.name == "default"
     assert resolve_sources(moved).embedded is not None
+
+
+def test_no_module_writes_its_own_globals():
+    """Module state has an owner: no ``globals()`` writes anywhere in the package (the
+    scenario's fault models are a named table, found as module attributes through the
+    module's ``__getattr__``), and a scenario holding them pickles as a sweep worker needs."""
+    import pickle
+
+    from emaprog.config import scenario
+    from emaprog.config.scenario import load_scenario
+
+    from .conftest import CONFIGS
+
+    for path in (ROOT / "emaprog").rglob("*.py"):
+        assert "globals()" not in path.read_text(), path
+    fig10 = load_scenario(CONFIGS / "fig10-multiple-faults.yaml")
+    assert pickle.loads(pickle.dumps(fig10)) == fig10
+    assert scenario.ShortCircuit is scenario.FAULT_MODELS["ShortCircuit"]
+    with pytest.raises(AttributeError):
+        scenario.NotAFault  # noqa: B018

@@ -210,3 +210,63 @@ def test_a_recording_that_cannot_tell_is_inconclusive_for_every_fault(tmp_path, 
     assert set(report["confidence"]["inconclusive"]) == set(report["health"])
     assert "inconclusive" in result.output and "on phase" not in result.output
     assert report["interval"]["friction"] is not None
+
+
+def test_every_polar_fault_gets_its_own_plane_and_its_own_errors():
+    """A catalogue with two polar faults (the eccentricity and a copy of it named
+    ``wobble``): each gets a plane, a point maps back to both magnitudes and angles, and
+    each magnitude's error is its own plane's radial one (the covariance is diagonal in
+    the planes, so along the estimate it is the coordinate's, exactly: tolerance 1e-12)."""
+    from types import SimpleNamespace
+
+    from emaprog.faults import FAULTS
+    from emaprog.identification.confidence import (
+        _coordinates,
+        _planes,
+        _polar_errors,
+        _values,
+    )
+    from emaprog.identification.objective import Gene
+
+    ecc = FAULTS["eccentricity"]
+    wobble = ecc._replace(
+        name="wobble",
+        quantities=tuple(
+            q._replace(name=q.name.replace("eccentricity", "wobble")) for q in ecc.quantities
+        ),
+    )
+    planes = _planes((FAULTS["friction"], ecc, wobble))
+    assert [p.fault for p in planes] == ["eccentricity", "wobble"]
+    values = {
+        "friction": 1.5,
+        "eccentricity_zeta": 0.2,
+        "eccentricity_phase": 0.5,
+        "wobble_zeta": 0.1,
+        "wobble_phase": 2.0,
+    }
+    genes = [
+        Gene("friction", 1.0, 3.0, False),
+        Gene("eccentricity_zeta", 0.0, 0.8, False),
+        Gene("eccentricity_phase", 0.0, 2 * math.pi, True),
+        Gene("wobble_zeta", 0.0, 0.8, False),
+        Gene("wobble_phase", 0.0, 2 * math.pi, True),
+    ]
+    coords, point = _coordinates(SimpleNamespace(genes=genes), values, planes)
+    assert [c.name for c in coords] == [
+        "friction",
+        "eccentricity_x",
+        "eccentricity_y",
+        "wobble_x",
+        "wobble_y",
+    ]
+    back = _values({}, point, planes)
+    assert all(back[k] == pytest.approx(v, abs=1e-12) for k, v in values.items())
+    variances = np.array([1e-4, 4e-4, 9e-4, 1e-2, 1e-2])
+    # eccentricity at 0.5 rad: along the estimate the x/y variances mix by cos^2 / sin^2
+    errors = _polar_errors(coords, np.diag(variances), values, planes)
+    c, s = math.cos(0.5), math.sin(0.5)
+    assert errors["eccentricity_zeta"] == pytest.approx(
+        math.sqrt(4e-4 * c * c + 9e-4 * s * s), rel=1e-12
+    )
+    assert errors["wobble_zeta"] == pytest.approx(0.1, rel=1e-12)  # isotropic: the same
+    assert errors["wobble_phase"] == pytest.approx(0.1 / 0.1, rel=1e-12)  # across / zeta

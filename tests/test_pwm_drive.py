@@ -121,20 +121,32 @@ def test_dead_time_over_a_tenth_of_the_period_is_refused():
         drive_set(pwm_frequency=60000.0, dead_time=2.0e-6)
 
 
-def test_a_report_says_when_its_units_form_was_not_calibrated():
+def test_a_report_says_which_form_its_laws_were_calibrated_for():
     """The intervals' model-error laws were calibrated on the hysteresis drive with an ideal
-    chain: a report on that form says so; on a PWM drive (or with chain keys) its ``form``
-    says they are not, and the note names the form."""
-    from emaprog.api import unit_form
+    chain (basis ``unit``) and on PWM units logged through a chain (basis ``form``): a report
+    on either says so and names the form; a hysteresis drive logged through a chain borrows
+    the PWM form's laws and says they are not its own."""
+    from emaprog.identification.confidence import basis_of
+    from emaprog.identification.reporting import unit_form
+
+    from .test_sensor_chain import chain_set
 
     plain = unit_form(parameters.load("default"))
     assert (
         plain["calibrated"] and plain["regulator"] == "hysteresis" and plain["sensor_chain"] == []
     )
     pwm = unit_form(drive_set())
-    assert not pwm["calibrated"] and "pwm drive" in pwm["note"]
+    assert pwm["calibrated"] and "pwm drive" in pwm["note"]
     logged = unit_form(parameters.load("default-pwm"))
-    assert "speed_source" in logged["sensor_chain"] and "not calibrated" in logged["note"]
+    assert "speed_source" in logged["sensor_chain"] and "calibration-pwm" in logged["note"]
+    hysteresis_logged = chain_set()
+    chained = unit_form(hysteresis_logged)
+    assert not chained["calibrated"] and "not calibrated" in chained["note"]
+    assert basis_of(False, True, parameters.load("default").hysteresis_form) == "unit"
+    assert basis_of(False, True, drive_set().hysteresis_form) == "form"
+    assert basis_of(False, True, hysteresis_logged.hysteresis_form) == "form"
+    assert basis_of(False, False, drive_set().hysteresis_form) == "shipped"
+    assert basis_of(True, True, drive_set().hysteresis_form) == "twin"
 
 
 def test_a_unit_off_its_set_keeps_the_drives_gains():

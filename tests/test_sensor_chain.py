@@ -149,7 +149,8 @@ def test_a_pwm_unit_logged_through_the_chain_is_identified_with_its_own_form(tmp
     if not aware:
         assert set(report["health"].values()) == {"inconclusive"}
         return
-    assert report["form"]["calibrated"] is False  # said, beside the verdict
+    # the form is said beside the verdict: a PWM drive's laws are the form basis' own
+    assert report["form"]["calibrated"] is True and "calibration-pwm" in report["form"]["note"]
     err = report["error"]
     assert abs(err["friction"]) / 1.8 < 0.05
     assert abs(err["backlash"]) < 5e-5

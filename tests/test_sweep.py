@@ -326,10 +326,9 @@ def test_summary_counts_detections_false_alarms_and_isolation():
     assert s["false_alarms"]["per_fault_on_healthy"]["backlash"] == 0.5
     assert s["detection"]["short_circuit"] == {"cases": 2, "detected": 1, "rate": 0.5}
     assert s["detection"]["friction"]["rate"] == 1.0 and s["detection"]["backlash"]["rate"] is None
-    assert (
-        s["isolation"]["confusion"]["b"]["b"] == 1 and s["isolation"]["confusion"]["c"]["none"] == 1
-    )
-    assert s["isolation"]["correct_rate"] == 0.5
+    isolation = s["isolation"]["short_circuit"]
+    assert isolation["confusion"]["b"]["b"] == 1 and isolation["confusion"]["c"]["none"] == 1
+    assert isolation["correct_rate"] == 0.5
     friction = s["errors"]["friction"]  # relative: 0.2 / 2.0 on one case, 0 elsewhere
     assert friction["max"] == pytest.approx(0.1) and friction["within_tolerance"] == pytest.approx(
         0.8

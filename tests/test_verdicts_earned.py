@@ -44,7 +44,7 @@ def test_a_healthy_unit_names_no_faulty_phase():
     report = report_of("chirp-nominal")
     assert set(report.health.values()) == {"nominal"}
     assert report.data["short_circuit_phase"] is None
-    assert report.data["confidence"]["isolation"] is None
+    assert report.data["confidence"]["isolation"] == {"short_circuit": None}
     data = {**report.data, "figures": {"fit": "fit.png", "convergence": "convergence.png"}}
     text = report_markdown(data)
     assert "no faulty phase named" in text and "Confidence in phase" not in text
@@ -88,12 +88,14 @@ def test_a_short_circuit_split_between_two_phases_names_neither():
     split = {"phase": "a", "runner_up": "b", "delta_chi2": 1.47, "confidence": 0.68}
     clear = {**split, "confidence": 0.99}
     assert MIN_PHASE_CONFIDENCE == 0.9
-    assert named_phase(values, True, split) is None
-    assert named_phase(values, True, clear) == "a" and named_phase(values, False, clear) is None
+    fault = "short_circuit"
+    assert named_phase(values, fault, True, split) is None
+    assert named_phase(values, fault, True, clear) == "a"
+    assert named_phase(values, fault, False, clear) is None
     report = {
         "health": {"short_circuit": "incipient"},
         "short_circuit_phase": None,
-        "confidence": {"isolation": split},
+        "confidence": {"isolation": {"short_circuit": split}},
     }
     assert "phase not determined: A or B" in _phase_sentence(report)
 

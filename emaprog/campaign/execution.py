@@ -11,7 +11,7 @@ from ..config.parameters import Parameters
 from ..config.scenario import Faults, Scenario
 from ..faults import (
     FAULT_NAMES,
-    PHASE_FAULT,
+    PHASE_FAULTS,
     QUANTITIES,
     flatten,
     worst_phase,
@@ -145,10 +145,11 @@ def run_case(spec: CaseSpec) -> dict:
     for fault in FAULT_NAMES:
         row[f"health_{fault}"] = health.get(fault, "not estimated")
         row[f"true_health_{fault}"] = true_health[fault]
+    for fault in PHASE_FAULTS:
+        row[f"true_{fault}_phase"] = worst_phase(truth, fault) or "none"
+        row[f"est_{fault}_phase"] = verdict.phase[fault] or "none"
     row.update(
         {
-            f"true_{PHASE_FAULT}_phase": worst_phase(truth) or "none",
-            f"est_{PHASE_FAULT}_phase": verdict.phase or "none",
             "fitness": float(result.fitness),
             "correction": result.objective.correction.applied,
             "floor_ratio": float(confidence.floor.ratio),
@@ -160,9 +161,10 @@ def run_case(spec: CaseSpec) -> dict:
                 f"echo_{q}": float((confidence.echo or {}).get("errors", {}).get(q, nan))
                 for q in QUANTITIES
             },
-            "isolation_confidence": float(confidence.isolation["confidence"])
-            if confidence.isolation
-            else nan,
+            **{
+                f"{fault}_isolation_confidence": float(found["confidence"]) if found else nan
+                for fault, found in confidence.isolation.items()
+            },
             "evaluations": int(result.evaluations),
             "generations": int(result.generations),
             "simulate_s": simulated - start,

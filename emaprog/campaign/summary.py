@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from ..config.parameters import Parameters
-from ..faults import CATALOGUE, FAULT_NAMES, NUISANCES, PHASE_FAULT, PHASES, QUANTITIES
+from ..faults import CATALOGUE, FAULT_NAMES, NUISANCES, PHASE_FAULTS, PHASES, QUANTITIES
 from ..identification.confidence import Z90
 from ..identification.objective import NUISANCE_DEFAULTS
 
@@ -132,14 +132,6 @@ def summarize(frame: pd.DataFrame, params: Parameters) -> dict:
         "per_fault_on_healthy": {f: _rate(int(v.sum()), len(healthy)) for f, v in flags.items()},
         "per_fault_where_absent": absent_alarms,
     }
-    confusion = {t: {e: 0 for e in PHASE_NAMES} for t in PHASE_NAMES}
-    true_phase = np.where(
-        frame[f"true_health_{PHASE_FAULT}"] != "nominal", frame[f"true_{PHASE_FAULT}_phase"], "none"
-    )
-    for t, e in zip(true_phase, frame[f"est_{PHASE_FAULT}_phase"]):
-        confusion[t][e] += 1
-    faulty = [t for t in true_phase if t != "none"]
-    right = sum(confusion[t][t] for t in PHASES)
     return {
         "cases": int(len(frame)),
         "errors": errors,
@@ -148,11 +140,7 @@ def summarize(frame: pd.DataFrame, params: Parameters) -> dict:
         "nuisance": _nuisance(frame),
         "detection": detection,
         "false_alarms": false_alarms,
-        "isolation": {
-            "confusion": confusion,
-            "cases": len(faulty),
-            "correct_rate": _rate(right, len(faulty)),
-        },
+        "isolation": {fault: _isolation(frame, fault) for fault in PHASE_FAULTS},
         "timing": {
             "median_simulate_s": float(frame["simulate_s"].median()) if len(frame) else None,
             "median_identify_s": float(frame["identify_s"].median()) if len(frame) else None,
@@ -255,6 +243,37 @@ def _nuisance(frame: pd.DataFrame) -> dict | None:
     return out or None
 
 
+def _isolation(frame: pd.DataFrame, fault: str) -> dict:
+    """A per-phase fault's confusion of true and named phases, and its share named right."""
+    confusion = {t: {e: 0 for e in PHASE_NAMES} for t in PHASE_NAMES}
+    true_phase = np.where(
+        frame[f"true_health_{fault}"] != "nominal", frame[f"true_{fault}_phase"], "none"
+    )
+    for t, e in zip(true_phase, frame[f"est_{fault}_phase"]):
+        confusion[t][e] += 1
+    faulty = [t for t in true_phase if t != "none"]
+    right = sum(confusion[t][t] for t in PHASES)
+    return {"confusion": confusion, "cases": len(faulty), "correct_rate": _rate(right, len(faulty))}
+
+
+def _isolation_markdown(fault: str, isolation: dict) -> str:
+    confusion = isolation["confusion"]
+    matrix = "\n".join(
+        f"| {t} | " + " | ".join(str(confusion[t][e]) for e in PHASE_NAMES) + " |"
+        for t in PHASE_NAMES
+    )
+    return f"""## {fault.replace("_", "-").capitalize()} isolation
+
+Rows: true faulty phase; columns: phase named by the verdict. Correct on
+{_cell(isolation["correct_rate"], "{:.0%}")} of {isolation["cases"]} faulty cases.
+
+| true \\ named | {" | ".join(PHASE_NAMES)} |
+|---|---|---|---|---|
+{matrix}
+
+"""
+
+
 def regression_figures(summary: dict) -> dict[str, tuple[float | None, str]]:
     """The figures ``--baseline`` compares: name -> (value, "lower"|"higher" is better)."""
     figures: dict[str, tuple[float | None, str]] = {}
@@ -264,7 +283,8 @@ def regression_figures(summary: dict) -> dict[str, tuple[float | None, str]]:
     for fault, stats in summary["detection"].items():
         figures[f"detection.{fault}.rate"] = (stats["rate"], "higher")
     figures["false_alarms.rate"] = (summary["false_alarms"]["rate"], "lower")
-    figures["isolation.correct_rate"] = (summary["isolation"]["correct_rate"], "higher")
+    for fault, isolation in summary["isolation"].items():
+        figures[f"isolation.{fault}.correct_rate"] = (isolation["correct_rate"], "higher")
     return figures
 
 
@@ -317,11 +337,7 @@ def markdown(summary: dict) -> str:
         f"{_cell(summary['false_alarms']['per_fault_where_absent'][f], '{:.0%}')} |"
         for f, d in summary["detection"].items()
     )
-    confusion = summary["isolation"]["confusion"]
-    matrix = "\n".join(
-        f"| {t} | " + " | ".join(str(confusion[t][e]) for e in PHASE_NAMES) + " |"
-        for t in PHASE_NAMES
-    )
+    isolation = "".join(_isolation_markdown(f, i) for f, i in summary["isolation"].items())
     fa = summary["false_alarms"]
     failures = summary.get("failed", 0)
     return f"""# Campaign {summary["campaign"]}: {summary["cases"]} cases
@@ -356,16 +372,7 @@ fault is truly below its incipient threshold.
 |---|---|---|---|---|---|
 {detection}
 
-## Short-circuit isolation
-
-Rows: true faulty phase; columns: phase named by the verdict. Correct on
-{_cell(summary["isolation"]["correct_rate"], "{:.0%}")} of {summary["isolation"]["cases"]} faulty cases.
-
-| true \\ named | {" | ".join(PHASE_NAMES)} |
-|---|---|---|---|---|
-{matrix}
-
-{_intervals_markdown(summary)}{_commissioning_markdown(summary)}Median time per case: simulate {_cell(summary["timing"]["median_simulate_s"], "{:.2f}")} s,
+{isolation}{_intervals_markdown(summary)}{_commissioning_markdown(summary)}Median time per case: simulate {_cell(summary["timing"]["median_simulate_s"], "{:.2f}")} s,
 identify {_cell(summary["timing"]["median_identify_s"], "{:.2f}")} s.
 """
 

@@ -376,6 +376,17 @@ class Parameters(NamedTuple):
         return values
 
     @property
+    def hysteresis_form(self) -> bool:
+        """Whether the unit has the hysteresis campaigns' form: a hysteresis regulator and an
+        ideal sensor chain (no :data:`CHAIN_KEYS` away from their defaults). Its intervals'
+        model-error laws are the ``unit`` basis'; any other form's are the ``form`` basis'
+        (docs/reference.md, Confidence)."""
+        sensors = self.values()["sensors"]
+        return self.spec.drive.regulator == "hysteresis" and not any(
+            k in sensors for k in CHAIN_KEYS
+        )
+
+    @property
     def plant(self) -> Plant:
         """The kernels' view of the unit: electrical, mechanical, controller, sensors."""
         return Plant(self.electrical, self.mechanical, self.controller, self.sensors)

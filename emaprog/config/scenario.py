@@ -154,10 +154,21 @@ def _fault_value_type(fault: Fault) -> tuple[Any, Any]:
         return _quantity_field(q), q.healthy
     fields: dict[str, Any] = {str(q.key): (_quantity_field(q), q.healthy) for q in fault.quantities}
     model = create_model(_camel(fault.name), __base__=Strict, __module__=__name__, **fields)
-    globals()[model.__name__] = (
-        model  # a module attribute, so that instances pickle (sweep workers)
-    )
+    FAULT_MODELS[model.__name__] = model
     return model, model()
+
+
+#: The scenario models of the faults with more than one quantity, by class name, built from
+#: the catalogue at import. They are this module's attributes through :func:`__getattr__`,
+#: so that their instances pickle (sweep workers look a class up by module and name).
+FAULT_MODELS: dict[str, type[Strict]] = {}
+
+
+def __getattr__(name: str) -> type[Strict]:
+    try:
+        return FAULT_MODELS[name]
+    except KeyError:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
 
 
 def _camel(name: str) -> str:

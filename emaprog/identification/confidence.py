@@ -7,9 +7,10 @@ Three questions, answered after the optimiser has its estimate:
    second-difference estimate that passes the slow signal and resolves the
    ADC step), and turned into the fitness a perfect model would reach on that
    recording: the 1 ms mean leaves ``sigma^2 / width`` of white noise on every
-   filtered sample. ``explained`` is ``fitness <= MAX_FLOOR_RATIO x floor``
-   (:data:`MAX_FLOOR_RATIO`, chosen by measurement; see its comment). When it
-   is not, every verdict is ``inconclusive``.
+   filtered sample. ``explained`` is ``fitness <= limit x floor``, the limit
+   :data:`MAX_FLOOR_RATIO` (chosen by measurement; see its comment) or, for a unit
+   of another form, its calibration's (:func:`floor_ratio_limit`). When it is not,
+   every verdict is ``inconclusive``.
 
 2. **What does the recording determine?** The Jacobian of the filtered,
    weighted residual (the vector whose squared norm is the fitness) with
@@ -60,7 +61,7 @@ from ..faults import (
     CATALOGUE,
     FAULTS,
     MODEL_ERRORS,
-    PHASE_FAULT,
+    PHASE_FAULTS,
     QUANTITIES,
     ModelError,
     fault_load,
@@ -103,14 +104,16 @@ MAX_FLOOR_SHARE = 0.05
 MIN_PHASE_CONFIDENCE = 0.9
 
 
-def named_phase(values: dict[str, float], flagged: bool, isolation: dict | None) -> str | None:
-    """The short-circuit phase a verdict names: the worst one, when the short is flagged and
-    told from the runner-up with at least :data:`MIN_PHASE_CONFIDENCE`."""
+def named_phase(
+    values: dict[str, float], fault: str, flagged: bool, isolation: dict | None
+) -> str | None:
+    """The phase a verdict names for the per-phase ``fault``: the worst one, when the fault
+    is flagged and told from the runner-up with at least :data:`MIN_PHASE_CONFIDENCE`."""
     if not flagged:
         return None
     if isolation is not None and isolation["confidence"] < MIN_PHASE_CONFIDENCE:
         return None
-    return worst_phase(values)
+    return worst_phase(values, fault)
 
 
 #: Finite-difference step per quantity, as a share of its search span.
@@ -133,11 +136,19 @@ SHIPPED_ERROR: dict[str, ModelError] = {
 }
 
 
+#: Every quantity's and nuisance's law for a commissioned unit of another form (:func:`basis_of`
+#: "form"), calibrated on ``campaigns/calibration-pwm.yaml`` (docs/reference.md, Confidence).
+FORM_ERROR: dict[str, ModelError] = {
+    q: ModelError(*law) for q, law in MODEL_ERRORS["laws"]["form"].items()
+}
+
+
 class NoiseFloor(NamedTuple):
     sigma: dict[str, float]  # per signal, raw samples [its unit]
     fitness: float  # the fitness a model with no error would reach on this recording [-]
     ratio: float  # the identification's fitness over it [-]
     explained: bool
+    limit: float = MAX_FLOOR_RATIO  # the ratio up to which the Monitor explains it [-]
 
 
 class Confidence(NamedTuple):
@@ -145,7 +156,7 @@ class Confidence(NamedTuple):
     interval: dict[str, tuple[float, float]]  # per estimated quantity [low, high]
     standard_error: dict[str, float]  # per estimated quantity (eccentricity: zeta, phase)
     inconclusive: dict[str, str]  # fault -> why (only the inconclusive ones)
-    isolation: dict | None  # short-circuit phase confidence, when a short is named
+    isolation: dict[str, dict | None]  # per-phase fault -> its named phase's confidence
     method: str
     twin: bool  # the twin experiment's model-error laws were used (:func:`is_twin`)
     linear_error: dict[str, float]  # the linearised standard errors, before the laws
@@ -154,8 +165,11 @@ class Confidence(NamedTuple):
     echo: dict | None = None  # off the calibration: {"reasons", "errors"} (:mod:`.echo`)
 
 
-def noise_floor(objective: Objective, trace, fitness: float) -> NoiseFloor:
-    """The recording's noise floor in fitness units, and how far the fit is above it."""
+def noise_floor(
+    objective: Objective, trace, fitness: float, limit: float = MAX_FLOOR_RATIO
+) -> NoiseFloor:
+    """The recording's noise floor in fitness units, and how far the fit is above it (at
+    most ``limit`` times: explained)."""
     sensors = objective.params.plant.sensors
     lsb = {
         "current": sensors.current_lsb,
@@ -175,7 +189,7 @@ def noise_floor(objective: Objective, trace, fitness: float) -> NoiseFloor:
         floor += target.weights[s] * total * sigma[name] ** 2 / objective.measured_width / norm
     floor = max(floor, 1e-30)
     ratio = fitness / floor
-    return NoiseFloor(sigma, floor, ratio, bool(ratio <= MAX_FLOOR_RATIO))
+    return NoiseFloor(sigma, floor, ratio, bool(ratio <= limit), limit)
 
 
 def uninformative(objective: Objective, trace, floor: NoiseFloor) -> str | None:
@@ -237,27 +251,37 @@ class _Plane(NamedTuple):
     y: str
 
 
-def _plane() -> _Plane | None:
-    for fault in CATALOGUE:
+def _planes(catalogue=CATALOGUE) -> tuple[_Plane, ...]:
+    """Every polar fault's plane, in catalogue order."""
+    planes = []
+    for fault in catalogue:
         if fault.layout == "polar":
             m, a = (q.name for q in fault.quantities)
-            return _Plane(fault.name, m, a, f"{fault.name}_x", f"{fault.name}_y")
-    return None
+            planes.append(_Plane(fault.name, m, a, f"{fault.name}_x", f"{fault.name}_y"))
+    return tuple(planes)
 
 
-PLANE = _plane()
+PLANES = _planes()
+POLAR_MAGNITUDES = frozenset(p.magnitude for p in PLANES)
+#: Each polar fault's Cartesian coordinates (not quantities of their own).
+PLANE_COORDINATES = frozenset(n for p in PLANES for n in (p.x, p.y))
 
 
-def _coordinates(objective: Objective, values: dict[str, float]) -> tuple[list[_Coordinate], dict]:
-    """The smooth coordinates of the estimate: genes, the polar fault in the plane."""
+def _coordinates(
+    objective: Objective, values: dict[str, float], planes: tuple[_Plane, ...] = PLANES
+) -> tuple[list[_Coordinate], dict]:
+    """The smooth coordinates of the estimate: genes, each polar fault in its plane."""
     coords, point = [], {}
+    angles = {p.angle for p in planes}
+    by_magnitude = {p.magnitude: p for p in planes}
     for gene in objective.genes:
         step = STEP_SHARE * (gene.upper - gene.lower)
-        if PLANE and gene.quantity == PLANE.angle:
+        if gene.quantity in angles:
             continue
-        if PLANE and gene.quantity == PLANE.magnitude:
-            r, angle = values[PLANE.magnitude], values[PLANE.angle]
-            for name, v in ((PLANE.x, r * math.cos(angle)), (PLANE.y, r * math.sin(angle))):
+        plane = by_magnitude.get(gene.quantity)
+        if plane is not None:
+            r, angle = values[plane.magnitude], values[plane.angle]
+            for name, v in ((plane.x, r * math.cos(angle)), (plane.y, r * math.sin(angle))):
                 coords.append(_Coordinate(name, -gene.upper, gene.upper, step))
                 point[name] = v
             continue
@@ -267,14 +291,21 @@ def _coordinates(objective: Objective, values: dict[str, float]) -> tuple[list[_
 
 
 #: The bases of the model-error laws: a twin experiment (the trace is emaprog's Reference
-#: Model with this very set), a unit identified against its own commissioned set, and a unit
-#: identified against a set that was not fitted to it (the shipped set on a real actuator).
-BASES = ("twin", "unit", "shipped")
+#: Model with this very set), a unit identified against its own commissioned set, a unit
+#: identified against a set that was not fitted to it (the shipped set on a real actuator),
+#: and a commissioned unit of another form than the hysteresis drive with an ideal sensor
+#: chain (:attr:`~emaprog.config.parameters.Parameters.hysteresis_form`; calibrated on PWM
+#: units logged through a real chain under an aerodynamic spring).
+BASES = ("twin", "unit", "shipped", "form")
 
 
-def basis_of(twin: bool, commissioned: bool) -> str:
+def basis_of(twin: bool, commissioned: bool, hysteresis_form: bool = True) -> str:
     """Which laws apply (:data:`BASES`)."""
-    return "twin" if twin else ("unit" if commissioned else "shipped")
+    if twin:
+        return "twin"
+    if not commissioned:
+        return "shipped"
+    return "unit" if hysteresis_form else "form"
 
 
 def quantity_error(name: str, basis: str | bool = "unit") -> ModelError:
@@ -285,6 +316,8 @@ def quantity_error(name: str, basis: str | bool = "unit") -> ModelError:
     basis = {True: "twin", False: "unit"}.get(basis, basis) if isinstance(basis, bool) else basis
     if basis == "shipped" and name in SHIPPED_ERROR:
         return SHIPPED_ERROR[name]
+    if basis == "form":
+        return FORM_ERROR[name]
     for fault in CATALOGUE:
         laws = fault.twin_error if basis == "twin" else fault.model_error
         for q, law in zip(fault.quantities, laws):
@@ -301,6 +334,15 @@ def quantity_error(name: str, basis: str | bool = "unit") -> ModelError:
 #: 0.05 rad step (campaigns/off-calibration/step.yaml, fit ratio median 31): the friction
 #: interval held its truth in 67 % of the conclusive cases before.
 MISMATCH_RATIO: dict[str, float] = dict(MODEL_ERRORS["mismatch_ratio"])
+
+
+def floor_ratio_limit(basis: str) -> float:
+    """The fit-to-floor ratio up to which the Monitor explains a recording on ``basis``:
+    :data:`MAX_FLOOR_RATIO`; on the ``form`` basis the ratio its laws were calibrated under
+    (:data:`MISMATCH_RATIO`, the 95th percentile over its calibration units: the PWM form's
+    Monitor explains a unit's recording less closely than the hysteresis one, and its laws
+    are calibrated on such fits; docs/reference.md, Confidence)."""
+    return MISMATCH_RATIO["form"] if basis == "form" else MAX_FLOOR_RATIO
 
 
 def mismatch_widening(ratio: float, basis: str) -> float:
@@ -328,14 +370,17 @@ def is_twin(trace, params) -> bool:
     )
 
 
-def _values(base: dict[str, float], point: dict[str, float]) -> dict[str, float]:
-    """Fault values of a point in the coordinates (the plane back to magnitude and angle)."""
-    plane = (PLANE.x, PLANE.y) if PLANE else ()
-    out = {**base, **{k: v for k, v in point.items() if k not in plane}}
-    if PLANE and PLANE.x in point:
-        x, y = point[PLANE.x], point[PLANE.y]
-        out[PLANE.magnitude] = math.hypot(x, y)
-        out[PLANE.angle] = math.atan2(y, x) % (2.0 * math.pi)
+def _values(
+    base: dict[str, float], point: dict[str, float], planes: tuple[_Plane, ...] = PLANES
+) -> dict[str, float]:
+    """Fault values of a point in the coordinates (each plane back to magnitude and angle)."""
+    coordinates = {n for p in planes for n in (p.x, p.y)}
+    out = {**base, **{k: v for k, v in point.items() if k not in coordinates}}
+    for plane in planes:
+        if plane.x in point:
+            x, y = point[plane.x], point[plane.y]
+            out[plane.magnitude] = math.hypot(x, y)
+            out[plane.angle] = math.atan2(y, x) % (2.0 * math.pi)
     return out
 
 
@@ -402,7 +447,7 @@ def quantity_interval(name: str, value, se):
     zero, and its interval starts at 0."""
     q = QUANTITIES[name]
     low = value - Z90 * se
-    if PLANE and name == PLANE.magnitude:
+    if name in POLAR_MAGNITUDES:
         low = np.where(value <= RAYLEIGH90 * se, q.lower, low)
     low, high = np.maximum(low, q.lower), np.minimum(value + Z90 * se, q.upper)
     return (float(low), float(high)) if np.ndim(low) == 0 else (low, high)
@@ -425,7 +470,7 @@ def assess(
     taken into each standard error in quadrature, and the interval also spans the one about
     the estimate less that error (the bootstrap's bias correction; an arc widens by it)."""
     basis = basis or ("twin" if twin else "unit")
-    floor = noise_floor(objective, trace, fitness)
+    floor = noise_floor(objective, trace, fitness, floor_ratio_limit(basis))
     residual, blocks = residual_vector(objective, values)
     coords, jac = jacobian(objective, values)
     cov = covariance(jac, residual, blocks)
@@ -433,19 +478,7 @@ def assess(
         c.name: math.sqrt(cov[k, k]) if np.isfinite(cov[k, k]) else math.inf
         for k, c in enumerate(coords)
     }
-    plane = (PLANE.x, PLANE.y) if PLANE else ()
-    if PLANE and PLANE.x in linear:  # the plane's errors along and across the estimate
-        k = [i for i, c in enumerate(coords) if c.name in plane]
-        block = cov[np.ix_(k, k)]
-        zeta, phase = values[PLANE.magnitude], values[PLANE.angle]
-        radial = np.array([math.cos(phase), math.sin(phase)])
-        tangent = np.array([-math.sin(phase), math.cos(phase)])
-        finite = bool(np.all(np.isfinite(block)))
-        linear[PLANE.magnitude] = (
-            math.sqrt(max(float(radial @ block @ radial), 0.0)) if finite else math.inf
-        )
-        across = math.sqrt(max(float(tangent @ block @ tangent), 0.0)) if finite else math.inf
-        linear[PLANE.angle] = across / zeta if zeta > 0 else math.inf
+    linear.update(_polar_errors(coords, cov, values))
     interval, standard_error = {}, {}
     load = fault_load(values, {f.name: getattr(health_limits, f.name).incipient for f in CATALOGUE})
     widening = mismatch_widening(floor.ratio, basis)
@@ -460,7 +493,7 @@ def assess(
     }
     echoed = {k: abs(v) for k, v in signed.items()}
     for name, s in linear.items():
-        if name in plane:
+        if name in PLANE_COORDINATES:
             continue
         q = QUANTITIES.get(name)
         if q is None:  # a nuisance: never a verdict, an interval all the same
@@ -493,7 +526,7 @@ def assess(
                     min(interval[name][0], other[0]),
                     max(interval[name][1], other[1]),
                 )
-    linear = {name: s for name, s in linear.items() if name not in plane}
+    linear = {name: s for name, s in linear.items() if name not in PLANE_COORDINATES}
     inconclusive = {}
     why_not = uninformative(objective, trace, floor)
     for fault in estimated:
@@ -504,7 +537,7 @@ def assess(
             inconclusive[fault] = (
                 f"the Monitor does not explain the recording: fitness "
                 f"{fitness:.3g} is {floor.ratio:.0f} x the recording's noise "
-                f"floor {floor.fitness:.3g} (at most {MAX_FLOOR_RATIO:g} x)"
+                f"floor {floor.fitness:.3g} (at most {floor.limit:g} x)"
             )
             continue
         threshold = getattr(health_limits, fault).incipient
@@ -516,15 +549,18 @@ def assess(
                 f"healthy value and reaches the incipient threshold "
                 f"{threshold:g}"
             )
-    isolation = (
-        _isolation(objective, values, fitness, residual.size, correlation_length(residual, blocks))
-        if PHASE_FAULT in estimated
-        else None
-    )
+    phased = [fault for fault in PHASE_FAULTS if fault in estimated]
+    length = correlation_length(residual, blocks) if phased else 0.0
+    isolation = {
+        fault: _isolation(objective, fault, values, fitness, residual.size, length)
+        for fault in phased
+    }
     described = {
         "twin": "twin experiment (the trace is the Reference Model with this very set)",
         "unit": "a unit's own parameter set",
         "shipped": "a parameter set not fitted to this unit",
+        "form": "a unit's own parameter set, of a form other than the hysteresis drive with "
+        "an ideal sensor chain",
     }[basis]
     method = (
         "linearised (sandwich) covariance of the weighted least-squares fit at the "
@@ -560,14 +596,46 @@ def assess(
     )
 
 
+def _polar_errors(
+    coords: list[_Coordinate],
+    cov: np.ndarray,
+    values: dict[str, float],
+    planes: tuple[_Plane, ...] = PLANES,
+) -> dict[str, float]:
+    """Each estimated polar fault's linearised errors from its plane's covariance block: the
+    magnitude's along the estimate, the angle's across it over the magnitude."""
+    out = {}
+    for plane in planes:
+        k = [i for i, c in enumerate(coords) if c.name in (plane.x, plane.y)]
+        if not k:
+            continue
+        block = cov[np.ix_(k, k)]
+        zeta, phase = values[plane.magnitude], values[plane.angle]
+        radial = np.array([math.cos(phase), math.sin(phase)])
+        tangent = np.array([-math.sin(phase), math.cos(phase)])
+        finite = bool(np.all(np.isfinite(block)))
+        out[plane.magnitude] = (
+            math.sqrt(max(float(radial @ block @ radial), 0.0)) if finite else math.inf
+        )
+        across = math.sqrt(max(float(tangent @ block @ tangent), 0.0)) if finite else math.inf
+        out[plane.angle] = across / zeta if zeta > 0 else math.inf
+    return out
+
+
 def _isolation(
-    objective: Objective, values: dict[str, float], fitness: float, samples: int, length: float
+    objective: Objective,
+    fault: str,
+    values: dict[str, float],
+    fitness: float,
+    samples: int,
+    length: float,
 ) -> dict | None:
-    """Confidence in the named short-circuit phase against the runner-up (module docstring)."""
-    named = worst_phase(values)
+    """Confidence in the per-phase ``fault``'s named phase against the runner-up (module
+    docstring)."""
+    named = worst_phase(values, fault)
     if named is None:
         return None
-    phases = {q.key: q.name for q in FAULTS[PHASE_FAULT].quantities}
+    phases = {q.key: q.name for q in FAULTS[fault].quantities}
     others = sorted((p for p in phases if p != named), key=lambda p: -values[phases[p]])
     runner = others[0]
     moved = {**values, phases[named]: values[phases[runner]], phases[runner]: values[phases[named]]}
@@ -594,7 +662,7 @@ def confidence_record(confidence: Confidence) -> dict:
             "fitness": floor.fitness,
             "ratio": floor.ratio,
             "explained": floor.explained,
-            "rule": f"explained when fitness <= {MAX_FLOOR_RATIO:g} x the floor",
+            "rule": f"explained when fitness <= {floor.limit:g} x the floor",
         },
         "standard_error": {q: finite(v) for q, v in confidence.standard_error.items()},
         "inconclusive": confidence.inconclusive,

@@ -6,7 +6,7 @@ import math
 from typing import TYPE_CHECKING, NamedTuple
 
 from ..config.parameters import Parameters
-from ..faults import CATALOGUE, PHASE_FAULT, severity
+from ..faults import CATALOGUE, PHASE_FAULTS, severity
 
 if TYPE_CHECKING:
     from .run import Identification
@@ -58,8 +58,9 @@ class Verdict(NamedTuple):
 
     health: dict[str, str]  # per estimated fault (:data:`VERDICTS`)
     error: dict[str, float | None] | None  # estimate - truth per quantity (a twin), else None
-    phase: str | None  # the short-circuit phase named faulty, or None
-    isolation: dict | None  # its confidence against the runner-up, only beside a flagged short
+    phase: dict[str, str | None]  # per-phase fault -> the phase named faulty, or None
+    #: per-phase fault -> its phase's confidence against the runner-up (None unless flagged)
+    isolation: dict[str, dict | None]
 
 
 def judge(
@@ -70,16 +71,20 @@ def judge(
 ) -> Verdict:
     """The :class:`Verdict` of an identification: health per estimated fault under the set's
     thresholds (``inconclusive`` where the recording cannot tell), the error against a known
-    truth, and the faulty phase with its confidence only beside a flagged short circuit
-    (:func:`~emaprog.identification.confidence.named_phase`)."""
+    truth, and each per-phase fault's faulty phase with its confidence only beside its
+    flagged verdict (:func:`~emaprog.identification.confidence.named_phase`)."""
     from .confidence import named_phase
 
     verdicts = health(result.estimate, estimated, params, result.confidence.inconclusive)
-    flagged = verdicts.get(PHASE_FAULT) in ("incipient", "degraded")
-    isolation = result.confidence.isolation if flagged else None
+    phase, isolation = {}, {}
+    for fault in PHASE_FAULTS:
+        flagged = verdicts.get(fault) in ("incipient", "degraded")
+        found = result.confidence.isolation.get(fault)
+        phase[fault] = named_phase(result.estimate, fault, flagged, found)
+        isolation[fault] = found if flagged else None
     return Verdict(
         verdicts,
         errors(result.estimate, truth) if truth is not None else None,
-        named_phase(result.estimate, flagged, result.confidence.isolation),
+        phase,
         isolation,
     )

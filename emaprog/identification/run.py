@@ -14,7 +14,7 @@ from .. import progress
 from ..config.parameters import Parameters
 from ..config.scenario import IdentifySettings
 from ..errors import InputError
-from ..faults import CATALOGUE, FAULTS, PHASE_FAULT
+from ..faults import CATALOGUE, FAULTS, PHASE_FAULTS
 from ..io.storage import Trace
 from ..models.common import Inputs
 from ..numerics import DEFAULT, Numerics, serial_blas
@@ -127,7 +127,8 @@ class PolishCoordinates:
 
 
 def single_phase_starts(objective: Objective, genes: np.ndarray) -> list[np.ndarray]:
-    """The GA's best with its short circuit moved onto one phase: a second start for the polish.
+    """The GA's best with a per-phase fault moved onto one phase: further starts for the
+    polish, one per estimated per-phase fault that is spread over phases.
 
     A short circuit on one phase and a smaller one spread over all three move
     the equivalent current alike on average (the sector-to-sector difference
@@ -136,25 +137,26 @@ def single_phase_starts(objective: Objective, genes: np.ndarray) -> list[np.ndar
     phase but one, which keeps its own fraction or carries the sum of all
     three; every phase is tried (the worst phase of a spread estimate is not
     always the shorted one: measured on the robustness campaign, a 9 % short on
-    B estimated as 5 % on A and 3.5 % on B), and the best candidate of the six
-    is returned. Empty when the short circuit is not estimated or already on
+    B estimated as 5 % on A and 3.5 % on B), and each fault's best candidate of the
+    six is returned. Empty when no per-phase fault is estimated or each is already on
     one phase.
     """
     values = objective.values(genes)
-    phases = [q.name for q in FAULTS[PHASE_FAULT].quantities]
-    fractions = {name: values[name] for name in phases}
-    if (
-        phases[0] not in {g.quantity for g in objective.genes}
-        or sum(v > 0 for v in fractions.values()) <= 1
-    ):
-        return []
-    candidates = []
-    for phase in phases:
-        for level in {fractions[phase], sum(fractions.values())}:
-            moved = {**values, **{name: 0.0 for name in phases}, phase: level}
-            candidates.append(objective.genes_for(moved))
-    fitness = objective(np.array(candidates))
-    return [candidates[int(np.argmin(fitness))]]
+    estimated = {g.quantity for g in objective.genes}
+    starts = []
+    for fault in PHASE_FAULTS:
+        phases = [q.name for q in FAULTS[fault].quantities]
+        fractions = {name: values[name] for name in phases}
+        if phases[0] not in estimated or sum(v > 0 for v in fractions.values()) <= 1:
+            continue
+        candidates = []
+        for phase in phases:
+            for level in {fractions[phase], sum(fractions.values())}:
+                moved = {**values, **{name: 0.0 for name in phases}, phase: level}
+                candidates.append(objective.genes_for(moved))
+        fitness = objective(np.array(candidates))
+        starts.append(candidates[int(np.argmin(fitness))])
+    return starts
 
 
 def _powell(
@@ -318,7 +320,7 @@ def identify_trace(
     if commissioned is None:
         commissioned = params.spec.commissioning is not None
     twin = is_twin(trace, params)
-    basis = basis_of(twin, commissioned)
+    basis = basis_of(twin, commissioned, params.hysteresis_form)
     confidence = assess(
         objective,
         trace,
