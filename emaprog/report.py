@@ -218,11 +218,16 @@ def _fault_phase_sentence(report: dict, fault: str) -> str:
     phase = report.get(f"{fault}_phase")
     isolation = report["confidence"]["isolation"].get(fault)
     if phase is None and isolation is not None:
+        why = (
+            f"below the {MIN_PHASE_CONFIDENCE:.0%} a named phase needs"
+            if isolation["confidence"] < MIN_PHASE_CONFIDENCE
+            else "but their 90 % intervals overlap, and on a unit of another form a named "
+            "phase needs them apart"
+        )
         return (
             f"{label.capitalize()} flagged, phase not determined: {isolation['phase'].upper()} "
             f"or {isolation['runner_up'].upper()} (confidence {isolation['confidence']:.0%} "
-            f"for {isolation['phase'].upper()}, below the {MIN_PHASE_CONFIDENCE:.0%} a named "
-            "phase needs)."
+            f"for {isolation['phase'].upper()}, {why})."
         )
     if phase is None:
         return f"{label.capitalize()} flagged, phase not determined."

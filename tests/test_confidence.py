@@ -270,3 +270,26 @@ def test_every_polar_fault_gets_its_own_plane_and_its_own_errors():
     )
     assert errors["wobble_zeta"] == pytest.approx(0.1, rel=1e-12)  # isotropic: the same
     assert errors["wobble_phase"] == pytest.approx(0.1 / 0.1, rel=1e-12)  # across / zeta
+
+
+@pytest.mark.parametrize(
+    ("estimate", "interval", "unit", "form"),
+    [
+        (1.2, (1.10, 1.30), None, "does not clear it"),  # clear of healthy, not of incipient
+        (1.2, (1.16, 1.30), None, None),  # the whole interval at or above incipient (0.15)
+        (1.2, (0.95, 1.30), "cannot tell", "cannot tell"),  # holds healthy, reaches incipient
+        (1.05, (0.97, 1.10), None, None),  # below incipient throughout: nominal on both
+    ],
+)
+def test_a_finding_on_another_form_needs_its_whole_interval_past_incipient(
+    estimate, interval, unit, form
+):
+    """Friction at incipient 0.15: on a unit's own hysteresis set the estimate decides once
+    its interval is clear of healthy; on the form basis (another form: errors of the
+    thresholds' size) a finding's interval must clear the threshold."""
+    from emaprog.identification.confidence import interval_verdict
+
+    values = {"friction": estimate}
+    for basis, expected in (("unit", unit), ("form", form)):
+        why = interval_verdict("friction", values, {"friction": interval}, 0.15, basis)
+        assert (why is None) if expected is None else (expected in why), (basis, why)

@@ -88,8 +88,9 @@ def test_same_seed_same_result_and_logbook(strategy):
 
 
 def test_deap_strategy_leaves_the_global_random_state_and_counts_its_runs():
-    """DEAP's operators draw from the random module: seeded for the run, restored after;
-    the evaluations are the first population plus each generation's new individuals."""
+    """DEAP's operators draw from the run's own generator, never the global random module:
+    its state is untouched and the run is the same whatever it holds; the evaluations are
+    the first population plus each generation's new individuals."""
     calls = []
 
     def f(genes):
@@ -102,6 +103,9 @@ def test_deap_strategy_leaves_the_global_random_state_and_counts_its_runs():
     assert random.getstate() == before
     assert result.evaluations == sum(calls) and len(calls) == 11  # one batch per generation
     assert sum(r["nevals"] for r in result.logbook) == result.evaluations
+    random.seed(7)
+    again = minimize(f, 3, GAOptions(population=16, generations=10, strategy="deap"), seed=4)
+    assert np.array_equal(again.best, result.best) and again.fitness == result.fitness
 
 
 def test_stagnation_stops_early_and_logbook_is_monotone():

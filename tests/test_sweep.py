@@ -415,6 +415,21 @@ def test_regression_campaign_meets_its_committed_baseline(tmp_path):
             assert block["median_width"] <= block["width_bar"], (name, block)
 
 
+def test_a_baseline_from_before_per_phase_faults_were_named_still_compares(tmp_path):
+    """A summary.json written when ``isolation`` was the short circuit's alone reads as
+    that fault's, with the same regression figures as today's shape."""
+    from emaprog.campaign.run import read_baseline
+    from emaprog.campaign.summary import regression_figures
+
+    today = json.loads((ROOT / "campaigns" / "regression-baseline.json").read_text())
+    old = {**today, "isolation": today["isolation"]["short_circuit"]}
+    path = tmp_path / "old-summary.json"
+    path.write_text(json.dumps(old))
+    read = read_baseline(path)
+    assert read["isolation"] == today["isolation"]
+    assert regression_figures(read) == regression_figures(today)
+
+
 @pytest.mark.slow
 def test_no_healthy_actuator_is_flagged_faulty(tmp_path):
     """Figures of merit: 0 of 20 healthy traces flagged faulty (each with its own sensor noise)."""

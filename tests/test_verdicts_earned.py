@@ -85,13 +85,30 @@ def test_a_short_circuit_split_between_two_phases_names_neither():
     from emaprog.report import _phase_sentence
 
     values = {"short_circuit_a": 0.064, "short_circuit_b": 0.063, "short_circuit_c": 0.014}
-    split = {"phase": "a", "runner_up": "b", "delta_chi2": 1.47, "confidence": 0.68}
+    split = {
+        "phase": "a",
+        "runner_up": "b",
+        "delta_chi2": 1.47,
+        "confidence": 0.68,
+        "separated": False,
+    }
     clear = {**split, "confidence": 0.99}
     assert MIN_PHASE_CONFIDENCE == 0.9
     fault = "short_circuit"
     assert named_phase(values, fault, True, split) is None
     assert named_phase(values, fault, True, clear) == "a"
     assert named_phase(values, fault, False, clear) is None
+    # on a unit of another form the two phases' intervals must be apart as well
+    overlapping = {**clear, "separated": False}
+    assert named_phase(values, fault, True, overlapping, "form") is None
+    assert named_phase(values, fault, True, {**clear, "separated": True}, "form") == "a"
+    assert named_phase(values, fault, True, overlapping, "unit") == "a"
+    overlap_report = {
+        "health": {"short_circuit": "incipient"},
+        "short_circuit_phase": None,
+        "confidence": {"isolation": {"short_circuit": overlapping}},
+    }
+    assert "intervals overlap" in _phase_sentence(overlap_report)
     report = {
         "health": {"short_circuit": "incipient"},
         "short_circuit_phase": None,

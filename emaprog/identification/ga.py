@@ -12,8 +12,9 @@ Genes live in the unit box [0, 1]^d. Two strategies (``GAOptions.strategy``):
   ``cxSimulatedBinaryBounded`` and ``mutPolynomialBounded``, written out so that each
   generation's new individuals go to the batched evaluator in one call and progress
   is reported; circular genes stay within [0, 1] like the others (the polish works
-  in the plane). DEAP's operators draw from the global :mod:`random` module, which is
-  seeded from the caller's seed for the run and restored afterwards.
+  in the plane). DEAP's operators draw from their module's ``random``; the run calls
+  copies of them whose ``random`` is a :class:`random.Random` of its own, seeded by the
+  caller (:func:`_drawing_from`): the global :mod:`random` is never touched.
 
 Both start from the same Latin hypercube and spend ``population x (generations
 + 1)`` evaluations at most.
@@ -22,6 +23,7 @@ Both start from the same Latin hypercube and spend ``population x (generations
 from __future__ import annotations
 
 import random
+import types
 from collections.abc import Callable, Sequence
 from typing import NamedTuple
 
@@ -138,6 +140,17 @@ def _first_population(
     return population
 
 
+def _drawing_from(rng: random.Random, func: Callable, **names) -> Callable:
+    """DEAP's ``func`` drawing from ``rng``: the same code with its module's names, but
+    ``random`` (and any of ``names``) bound to the run's own; the draws are the ones the
+    global :mod:`random` seeded alike would give."""
+    copy = types.FunctionType(
+        func.__code__, {**func.__globals__, "random": rng, **names}, func.__name__
+    )
+    copy.__defaults__, copy.__kwdefaults__ = func.__defaults__, func.__kwdefaults__
+    return copy
+
+
 def _deap_ga(
     fitness_of: BatchFitness,
     dims: int,
@@ -151,17 +164,28 @@ def _deap_ga(
     the new individuals, select mu of parents + offspring), written out to report each
     generation's progress."""
     m = options.population
+    draws = random.Random(seed)
     toolbox = base.Toolbox()
-    toolbox.register("mate", tools.cxSimulatedBinaryBounded, eta=options.sbx_eta, low=0.0, up=1.0)
+    toolbox.register(
+        "mate",
+        _drawing_from(draws, tools.cxSimulatedBinaryBounded),
+        eta=options.sbx_eta,
+        low=0.0,
+        up=1.0,
+    )
     toolbox.register(
         "mutate",
-        tools.mutPolynomialBounded,
+        _drawing_from(draws, tools.mutPolynomialBounded),
         eta=options.polynomial_eta,
         low=0.0,
         up=1.0,
         indpb=1.0 / dims,
     )
-    toolbox.register("select", tools.selTournament, tournsize=options.tournament)
+    select = _drawing_from(
+        draws, tools.selTournament, selRandom=_drawing_from(draws, tools.selRandom)
+    )
+    toolbox.register("select", select, tournsize=options.tournament)
+    vary = _drawing_from(draws, algorithms.varOr)
     hall = tools.HallOfFame(1)
     stats = _statistics()
     logbook = tools.Logbook()
@@ -180,25 +204,18 @@ def _deap_ga(
         if on_generation is not None:
             on_generation(gen, float(hall[0].fitness.values[0]))
 
-    state = random.getstate()
-    try:
-        random.seed(seed)
-        rng = np.random.default_rng(np.random.SeedSequence(seed))
-        population = [
-            creator.FaultCandidate(row.tolist()) for row in _first_population(rng, m, dims, initial)
-        ]
-        evaluations = evaluate(population)
-        record(0, evaluations, population, population)
-        for gen in range(1, options.generations + 1):
-            offspring = algorithms.varOr(
-                population, toolbox, m, options.crossover, options.mutation
-            )
-            nevals = evaluate(offspring)
-            evaluations += nevals
-            population = toolbox.select(population + offspring, m)
-            record(gen, nevals, offspring, population)
-    finally:
-        random.setstate(state)
+    rng = np.random.default_rng(np.random.SeedSequence(seed))
+    population = [
+        creator.FaultCandidate(row.tolist()) for row in _first_population(rng, m, dims, initial)
+    ]
+    evaluations = evaluate(population)
+    record(0, evaluations, population, population)
+    for gen in range(1, options.generations + 1):
+        offspring = vary(population, toolbox, m, options.crossover, options.mutation)
+        nevals = evaluate(offspring)
+        evaluations += nevals
+        population = toolbox.select(population + offspring, m)
+        record(gen, nevals, offspring, population)
     return GAResult(
         np.asarray(hall[0], float),
         float(hall[0].fitness.values[0]),

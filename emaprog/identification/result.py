@@ -80,7 +80,7 @@ def judge(
     for fault in PHASE_FAULTS:
         flagged = verdicts.get(fault) in ("incipient", "degraded")
         found = result.confidence.isolation.get(fault)
-        phase[fault] = named_phase(result.estimate, fault, flagged, found)
+        phase[fault] = named_phase(result.estimate, fault, flagged, found, result.confidence.basis)
         isolation[fault] = found if flagged else None
     return Verdict(
         verdicts,
