@@ -26,6 +26,7 @@ from .config.parameters import Parameters
 from .config.scenario import (
     IdentifySettings,
     Scenario,
+    SpringLoad,
     load_any,
     load_scenario,
     parse_scenario,
@@ -556,8 +557,10 @@ def _write_report(data: dict, result, measured: Trace, folder: Path) -> None:
 
 def _load_of(embedded: Scenario | None, chosen: Scenario | None, settings: IdentifySettings):
     """The load the Monitor is driven with, and why: the trace's own scenario's (a simulated
-    trace knows its load); for a recording, a ``--scenario``'s only when the hinge moment is
-    not estimated (a scenario given for its settings never adds a load silently)."""
+    trace knows its load); for a recording, a ``--scenario``'s when the hinge moment is not
+    estimated, and its aerodynamic spring alone when the hinge moment is estimated and the
+    spring is not (a rig's programmed spring rate, its constant part unknown); the report's
+    ``load`` says which (a scenario given for its settings never adds a load silently)."""
     if embedded is not None:
         return embedded.load, "the trace's own scenario"
     if chosen is None or chosen.load.kind == "none":
@@ -566,7 +569,14 @@ def _load_of(embedded: Scenario | None, chosen: Scenario | None, settings: Ident
             if "hinge_moment" in (settings.nuisances or [])
             else "none (no scenario load; hinge moment not estimated)"
         )
-    if "hinge_moment" in (settings.nuisances or []):
+    estimated = settings.nuisances or []
+    spring = chosen.load if isinstance(chosen.load, SpringLoad) else None
+    if "hinge_moment" in estimated and spring and "hinge_stiffness" not in estimated:
+        return spring.model_copy(update={"torque": 0.0}), (
+            f"the scenario's aerodynamic spring, {spring.stiffness:g} N m/rad, stated "
+            "for this recording; its constant part is estimated (nuisance hinge_moment)"
+        )
+    if "hinge_moment" in estimated:
         return None, (
             f"the scenario's {chosen.load.kind} load is not applied to the recording: "
             "its hinge moment is estimated (nuisance hinge_moment); to state a known "

@@ -647,7 +647,10 @@ def test_an_aerodynamic_spring_is_estimated_as_an_operating_condition(tmp_path):
     explain the recording (measured 1161 x its floor: every fault inconclusive); with
     ``--nuisances hinge_moment,resistance_factor,hinge_stiffness`` the spring is estimated
     beside the faults (measured 2005 [1927, 2083] N m/rad, friction 1.487, short B 0.117)
-    within tolerance, and the spring's interval holds the truth."""
+    within tolerance, and the spring's interval holds the truth. The spring rate stated with
+    ``--scenario`` (a load of kind spring) and the default operating conditions: the spring
+    is applied, the hinge moment still estimated (measured: friction 1.482 [1.456, 1.508]
+    against 1.487 [1.459, 1.514] with the spring estimated)."""
     gen = generator()
     faults = {"friction": 1.5, "short_circuit": {"a": 0.0, "b": 0.12, "c": 0.0}}
     cols = gen.simulate_recording(30.0, faults, 23, unit=gen.unit_parameters(), spring=2000.0)
@@ -676,6 +679,20 @@ def test_an_aerodynamic_spring_is_estimated_as_an_operating_condition(tmp_path):
     low, high = report["nuisance_interval"]["hinge_moment"]
     assert low <= 30.0 <= high
     assert "aerodynamic spring" in (tmp_path / "spring" / "report.md").read_text()
+    # a rig's programmed spring rate stated with --scenario: applied with the hinge moment
+    # estimated (the constant part is unknown), the spring no longer fitted
+    stated = yaml.safe_load((RIG / "test-command.yaml").read_text())
+    stated["load"] = {"kind": "spring", "stiffness": 2000.0}
+    scenario_file = tmp_path / "stated.yaml"
+    scenario_file.write_text(yaml.safe_dump(stated))
+    result = run(["identify", *common, "-s", str(scenario_file), "-o", str(tmp_path / "stated")])
+    assert result.exit_code == 0, result.output
+    known = json.loads((tmp_path / "stated" / "report.json").read_text())
+    assert known["load"]["applied"]["stiffness"] == 2000.0
+    assert "hinge_stiffness" not in known["nuisance"]
+    assert within_spec(known, {"faults": faults}) == [], within_spec(known, {"faults": faults})
+    low, high = known["nuisance_interval"]["hinge_moment"]
+    assert low <= 30.0 <= high
 
 
 def test_a_unit_commissioned_under_an_aerodynamic_spring_is_fitted_with_it(tmp_path):
