@@ -563,13 +563,13 @@ def _load_of(embedded: Scenario | None, chosen: Scenario | None, settings: Ident
     ``load`` says which (a scenario given for its settings never adds a load silently)."""
     if embedded is not None:
         return embedded.load, "the trace's own scenario"
+    estimated = settings.nuisances or []
     if chosen is None or chosen.load.kind == "none":
         return None, (
             "none: the recording's hinge moment is estimated (nuisance hinge_moment)"
-            if "hinge_moment" in (settings.nuisances or [])
+            if "hinge_moment" in estimated
             else "none (no scenario load; hinge moment not estimated)"
         )
-    estimated = settings.nuisances or []
     spring = chosen.load if isinstance(chosen.load, SpringLoad) else None
     if "hinge_moment" in estimated and spring and "hinge_stiffness" not in estimated:
         return spring.model_copy(update={"torque": 0.0}), (
