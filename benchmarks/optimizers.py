@@ -141,7 +141,9 @@ def run_cases(count: int) -> list[dict]:
             objective = Objective(trace, inp, params, spec.settings, correction=correction)
             start = time.perf_counter()
             if name == "ga":  # first: its Monitor runs are every optimiser's budget
-                population, generations = ga_budget(spec.settings.ga, trace.sample_rate)
+                population, generations = ga_budget(
+                    spec.settings.ga, trace.sample_rate, params.hysteresis_form
+                )
                 options = GAOptions(population=population, generations=generations)
                 found = ga_minimize(
                     objective,

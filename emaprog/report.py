@@ -246,6 +246,14 @@ def _fault_phase_sentence(report: dict, fault: str) -> str:
     return sentence
 
 
+def _runs_text(ga: dict) -> str:
+    """The GA runs clause of report.md: empty for one run (and for older reports)."""
+    runs = ga.get("runs", 1)
+    if runs <= 1:
+        return ""
+    return f"; the best polished fit of {runs} independent GA runs, that run's seed {ga['seed']}"
+
+
 def report_markdown(report: dict) -> str:
     confidence = report["confidence"]
     truth = report["truth"] is not None
@@ -316,7 +324,7 @@ floor ({floor["fitness"]:.3e}); {"explained" if floor["explained"] else "NOT exp
 {operating}{load_line}
 Fitness {report["fitness"]:.4e} (GA best {ga["fitness"]:.4e}; refined: {ga["refined"]}).
 {ga["generations"]} generations (stopped by {ga["stopped_by"]}), {report["evaluations"]} Monitor
-Model runs, {report["elapsed_s"]:.2f} s, GA seed {report["seed"]}.
+Model runs, {report["elapsed_s"]:.2f} s, GA seed {report["seed"]}{_runs_text(ga)}.
 
 Nominal-discrepancy correction: {report["correction"]["applied"]} ({report["correction"]["note"]}).
 

@@ -167,6 +167,7 @@ def run_case(spec: CaseSpec) -> dict:
             },
             "evaluations": int(result.evaluations),
             "generations": int(result.generations),
+            "runs": int(result.runs),
             "simulate_s": simulated - start,
             "identify_s": result.elapsed_s,
             "true_hinge_moment": float(spec.hinge_moment),

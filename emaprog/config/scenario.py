@@ -15,10 +15,12 @@ from pydantic import (
     BaseModel,
     ConfigDict,
     Field,
+    SerializerFunctionWrapHandler,
     ValidationError,
     ValidationInfo,
     create_model,
     field_validator,
+    model_serializer,
     model_validator,
 )
 
@@ -235,13 +237,29 @@ class Signals(Strict):
 class GASettings(Strict):
     # omitted: 32 x 20 behind the least-squares polish (as accurate as 64 x 40 on the quick,
     # robustness and regression campaigns at a quarter of the Monitor runs), 64 x 40 for a
-    # recording below 2.5 kHz (emaprog.identification.run.ga_budget; docs/explanation/validation-and-speed.md)
+    # recording below 2.5 kHz or a unit in the form of a real actuator (a PWM drive or a
+    # logger's chain) (emaprog.identification.run.ga_budget; docs/explanation/validation-and-speed.md)
     population: Annotated[int, Field(strict=True, ge=4, le=4096)] | None = Field(
         None,
-        description="individuals per generation; omitted: 32, or 64 for a recording below 2.5 kHz",
+        description=(
+            "individuals per generation; omitted: 32, or 64 for a recording below 2.5 kHz"
+            " or a unit with a PWM drive or a logger's chain"
+        ),
     )
     generations: Annotated[int, Field(strict=True, ge=1, le=1000)] | None = Field(
-        None, description="omitted: 20, or 40 for a recording below 2.5 kHz"
+        None,
+        description=(
+            "omitted: 20, or 40 for a recording below 2.5 kHz or a unit with a PWM drive"
+            " or a logger's chain"
+        ),
+    )
+    runs: Annotated[int, Field(strict=True, ge=1, le=16)] | None = Field(
+        None,
+        description=(
+            "independent GA runs at most, each polished, the best fit kept, stopping once"
+            " two reach the same best fit (within 2 %); omitted: 1, or 4 for a unit with a"
+            " PWM drive or a logger's chain"
+        ),
     )
     crossover: Annotated[
         float, Field(strict=True, ge=0.0, le=1.0, description="[-] crossover probability")
@@ -266,6 +284,15 @@ class GASettings(Strict):
                 "offspring is crossed, mutated or copied)"
             )
         return self
+
+    @model_serializer(mode="wrap")
+    def _without_unset_runs(self, handler: SerializerFunctionWrapHandler) -> dict:
+        """``runs`` left out of a dump when unset: a campaign that does not name it keeps
+        its hash (and its store resumes) from before the key existed."""
+        data = handler(self)
+        if self.runs is None:
+            data.pop("runs", None)
+        return data
 
 
 NuisanceName = Literal[NUISANCE_NAMES]  # type: ignore[valid-type]  # the table's names

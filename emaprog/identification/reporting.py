@@ -105,6 +105,8 @@ def report_data(
             "generations": result.generations,
             "stopped_by": result.stopped_by,
             "refined": result.refined,
+            "runs": result.runs,
+            "seed": result.ga_seed,
             "logbook": result.logbook,
         },
         "evaluations": result.evaluations,

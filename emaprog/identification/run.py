@@ -39,23 +39,63 @@ REFINE_STEPS = 30
 JACOBIAN_STEP = 1e-3
 #: The GA's (population, generations) when the settings leave them out: 32 x 20 in front of
 #: the least-squares polish (docs/explanation/validation-and-speed.md: as accurate as 64 x 40 on the campaigns, a quarter of the
-#: Monitor runs), :data:`LOW_RATE_GA` for a recording slower than :data:`LOW_RATE` [Hz], where
-#: the aliased commutation structure makes the search harder. Measured
-#: (``benchmarks/rates.py``, 10 regression cases) at 1 kHz: 32 x 20 within tolerance on the
-#: short circuit in 80 % of cases and on zeta in 60 %, 64 x 40 in 90 % and 100 %; at 2 kHz and
-#: above both budgets are level.
+#: Monitor runs), :data:`LARGE_GA` for a recording slower than :data:`LOW_RATE` [Hz], where
+#: the aliased commutation structure makes the search harder, and for a unit in the form
+#: of a real actuator (a PWM drive or a logger's chain), whose switched drive makes the
+#: landscape rougher. Measured at 1 kHz (``benchmarks/rates.py``, 10 regression cases):
+#: 32 x 20 within tolerance on the short circuit in 80 % of cases and on zeta in 60 %,
+#: 64 x 40 in 90 % and 100 %; at 2 kHz and above both budgets are level. On the form
+#: (``campaigns/form/pwm-exact-unloaded.yaml``, 40 commissioned units): 32 x 20 left 14 of
+#: the 40 fits above 20 x their noise floor, the best in another basin than the truth's
+#: (backlash within tolerance 60 %, bias -32 urad), 64 x 40 six (98 %, bias 0).
 DEFAULT_GA = (GAOptions().population, GAOptions().generations)
-LOW_RATE_GA = (64, 40)
+LARGE_GA = (64, 40)
 LOW_RATE = 2500.0
 
 
-def ga_budget(ga, sample_rate: float) -> tuple[int, int]:
-    """(population, generations) of ``identify.ga`` for a recording at ``sample_rate`` [Hz]."""
-    population, generations = DEFAULT_GA if sample_rate >= LOW_RATE else LOW_RATE_GA
+def ga_budget(ga, sample_rate: float, hysteresis_form: bool = True) -> tuple[int, int]:
+    """(population, generations) of ``identify.ga`` for a recording at ``sample_rate`` [Hz]
+    of a unit whose set has the paper's form (``hysteresis_form``) or not."""
+    small = sample_rate >= LOW_RATE and hysteresis_form
+    population, generations = DEFAULT_GA if small else LARGE_GA
     return (
         population if ga.population is None else ga.population,
         generations if ga.generations is None else ga.generations,
     )
+
+
+#: Independent GA runs at most on a unit in the form of a real actuator (``identify.ga.runs``
+#: omitted; 1 on the paper's form). On ``campaigns/form/pwm-exact-loaded.yaml`` single 64 x 40
+#: runs of one case from four seeds ended at 30, 17, 24 and 25 x the noise floor and another
+#: case's at 27, 14, 23 and 25 x: different basins, and the lowest fit was the accurate one
+#: (backlash within 3 and 25 urad, friction within 1-5 %, where the others missed by up to
+#: 90 urad and 17 %); the least-squares polish started from the truth reached 17 and 13 x.
+FORM_RUNS = 4
+#: [-] two runs whose polished fits are this close (relative) found the same basin: stop.
+RUNS_AGREE = 0.02
+
+
+def ga_runs(ga, hysteresis_form: bool = True) -> int:
+    """The most independent GA runs of ``identify.ga`` for a unit of the paper's form
+    (``hysteresis_form``) or not."""
+    if ga.runs is not None:
+        return ga.runs
+    return 1 if hysteresis_form else FORM_RUNS
+
+
+def run_seed(seed: int, run: int) -> int:
+    """The GA seed of run ``run`` (0: ``seed`` itself), reproducible from ``seed`` alone."""
+    if run == 0:
+        return seed
+    return int(np.random.SeedSequence([seed, run]).generate_state(1)[0])
+
+
+def agreed(fits: list[float]) -> bool:
+    """Whether the two best of the runs' polished fits are within :data:`RUNS_AGREE`."""
+    if len(fits) < 2:
+        return False
+    first, second = sorted(fits)[:2]
+    return second <= first * (1.0 + RUNS_AGREE)
 
 
 class Identification(NamedTuple):
@@ -67,6 +107,8 @@ class Identification(NamedTuple):
     generations: int
     stopped_by: str
     refined: bool
+    runs: int  # independent GA runs made (the best one's GA and polish are reported)
+    ga_seed: int  # the seed of that run (:func:`run_seed`)
     elapsed_s: float
     logbook: list[dict]
     objective: Objective
@@ -287,7 +329,7 @@ def identify_trace(
     correction = choose_correction(trace, inputs, params, settings, numerics, recordings)
     objective = Objective(trace, inputs, params, settings, numerics, correction)
     ga = settings.ga
-    population, generations = ga_budget(ga, trace.sample_rate)
+    population, generations = ga_budget(ga, trace.sample_rate, params.hysteresis_form)
     options = GAOptions(
         population=population,
         generations=generations,
@@ -296,26 +338,36 @@ def identify_trace(
         strategy=ga.strategy,
     )
     healthy = objective.healthy_genes()
-    with progress.task("identify", generations, show_progress) as advance:
+    most = ga_runs(ga, params.hysteresis_form)
+    chosen, fits = None, []
+    with progress.task("identify", generations * most, show_progress) as advance:
 
         def on_generation(gen: int, best: float) -> None:
             if gen:
                 advance(1, best=f"{best:.3e}")
 
-        result = minimize(
-            objective,
-            objective.dims,
-            options,
-            seed=ga.seed,
-            circular=objective.circular,
-            initial=healthy[None],
-            on_generation=on_generation,
-        )
-    best, best_fitness, refined = result.best, result.fitness, False
-    if settings.refine:
-        best, best_fitness, refined = polish(
-            objective, result.best, result.fitness, settings.polish
-        )
+        for run in range(most):
+            result = minimize(
+                objective,
+                objective.dims,
+                options,
+                seed=run_seed(ga.seed, run),
+                circular=objective.circular,
+                initial=healthy[None],
+                on_generation=on_generation,
+            )
+            best, best_fitness, refined = result.best, result.fitness, False
+            if settings.refine:
+                best, best_fitness, refined = polish(
+                    objective, result.best, result.fitness, settings.polish
+                )
+            fits.append(best_fitness)
+            if chosen is None or best_fitness < chosen[2]:
+                chosen = (result, best, best_fitness, refined, run_seed(ga.seed, run))
+            if agreed(fits):
+                break
+    assert chosen is not None  # most >= 1
+    result, best, best_fitness, refined, chosen_seed = chosen
     estimate = objective.values(best)
     if commissioned is None:
         commissioned = params.spec.commissioning is not None
@@ -356,6 +408,8 @@ def identify_trace(
         generations=result.generations,
         stopped_by=result.stopped_by,
         refined=refined,
+        runs=len(fits),
+        ga_seed=chosen_seed,
         elapsed_s=time.perf_counter() - start,
         logbook=list(result.logbook),
         objective=objective,
