@@ -132,6 +132,13 @@ def measure(repeat: int) -> dict[str, float]:
         figures["identify_s"] = median_time(
             lambda: api.identify(path, output=Path(tmp) / "report", force=True), max(1, repeat // 2)
         )
+        # the same faults on a unit of another form (default-pwm: PWM drive, logger chain),
+        # searched with its own budget (up to four GA runs of 64 x 40)
+        form = Path(tmp) / "fig10-pwm.parquet"
+        api.simulate(FIG10, output=form, parameters="default-pwm")
+        figures["identify_form_s"] = median_time(
+            lambda: api.identify(form, output=Path(tmp) / "report-pwm", force=True), 1
+        )
     figures["sweep_cases_per_min"] = SWEEP_CASES / (
         median_time(lambda: sweep_once(SWEEP_CASES), max(1, repeat // 2)) / 60.0
     )
