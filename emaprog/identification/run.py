@@ -348,11 +348,12 @@ def identify_trace(
                 advance(1, best=f"{best:.3e}")
 
         for run in range(most):
+            seed = run_seed(ga.seed, run)
             result = minimize(
                 objective,
                 objective.dims,
                 options,
-                seed=run_seed(ga.seed, run),
+                seed=seed,
                 circular=objective.circular,
                 initial=healthy[None],
                 on_generation=on_generation,
@@ -364,7 +365,7 @@ def identify_trace(
                 )
             fits.append(best_fitness)
             if chosen is None or best_fitness < chosen[2]:
-                chosen = (result, best, best_fitness, refined, run_seed(ga.seed, run))
+                chosen = (result, best, best_fitness, refined, seed)
             if agreed(fits):
                 break
     assert chosen is not None  # most >= 1
