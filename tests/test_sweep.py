@@ -520,3 +520,28 @@ def test_a_small_robustness_campaign_commissions_each_unit_and_stays_within_spec
         cases["low_friction"].notna().all()
         and (cases["low_friction"] <= cases["est_friction"]).all()
     )
+    # a campaign's commissioned unit gets the rig workflow's correction (`identify -p UNIT.yaml`)
+    assert (cases["correction"] == "recording").all(), cases["correction"].tolist()
+
+
+def test_a_campaigns_commissioned_unit_gets_the_rig_workflows_correction():
+    """`identify.nominal_correction` omitted: a campaign's commissioned unit (a scaled set that
+    carries no commissioning record) gets `recording`, as `identify -p UNIT.yaml` does; the
+    same set uncommissioned gets `reference`; a named correction is kept."""
+    from emaprog.config.scenario import IdentifySettings
+    from emaprog.identification.defaults import resolve
+
+    shipped = parameters.load("default")
+    assert shipped.spec.commissioning is None
+    metadata = {"model": "reference"}
+    open_settings = IdentifySettings()
+    twin = resolve(open_settings, metadata, shipped)
+    assert twin.settings.nominal_correction == "reference"
+    unit = resolve(open_settings, metadata, shipped, real_unit=True, commissioned=True)
+    assert unit.settings.nominal_correction == "recording"
+    assert unit.notes["nominal_correction"] == "default for a commissioned unit"
+    assert unit.settings.nuisances == ["hinge_moment", "resistance_factor"]
+    named = IdentifySettings(nominal_correction="reference")
+    kept = resolve(named, metadata, shipped, real_unit=True, commissioned=True)
+    assert kept.settings.nominal_correction == "reference"
+    assert kept.notes["nominal_correction"] == "identify.nominal_correction"

@@ -110,6 +110,7 @@ def run_case(spec: CaseSpec) -> dict:
         trace.metadata,
         params,
         real_unit=spec.unit is not None or spec.commission is not None,
+        commissioned=spec.commission is not None,
     ).settings
     result = identify_trace(
         trace,

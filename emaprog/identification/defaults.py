@@ -46,10 +46,14 @@ def resolve(
     params: Parameters,
     nuisances: list[str] | None = None,
     real_unit: bool | None = None,
+    commissioned: bool | None = None,
 ) -> Resolved:
     """``settings`` with the open choices made (module docstring); ``nuisances`` (the
     command line's ``--nuisances``) overrides the settings' own; ``real_unit`` says what the
-    trace is where its metadata cannot (a campaign's spread or commissioned unit)."""
+    trace is where its metadata cannot (a campaign's spread or commissioned unit), and
+    ``commissioned`` whether ``params`` is a commissioned unit's set where the set cannot
+    say so (a campaign's commissioned unit is a scaled set, not a commissioned file: it
+    gets the rig workflow's ``recording`` all the same)."""
     real = is_real_unit(metadata, params) if real_unit is None else real_unit
     what = "a real unit" if real else "a twin experiment"
     notes = {}
@@ -63,7 +67,8 @@ def resolve(
     else:
         notes["nuisances"] = "identify.nuisances"
     if settings.nominal_correction is None:
-        commissioned = params.spec.commissioning is not None
+        if commissioned is None:
+            commissioned = params.spec.commissioning is not None
         update["nominal_correction"] = "recording" if commissioned else "reference"
         notes["nominal_correction"] = (
             "default for a commissioned unit" if commissioned else f"default for {what}"
