@@ -305,6 +305,7 @@ def write_laws(rows: list[dict], directories: list[Path], path: Path = LAWS_FILE
             f"{manifest.get('campaign_file', manifest['campaign'])} "
             f"({manifest['planned']} cases, hash {manifest['content_hash'][:12]})"
         )
+    written = set()
     for row in rows:
         basis, name = row["basis"], row["quantity"]
         if name in NUISANCE_DEFAULTS and basis != "form":  # the form's laws hold its own
@@ -312,12 +313,18 @@ def write_laws(rows: list[dict], directories: list[Path], path: Path = LAWS_FILE
                 continue
             basis = "nuisance"
         data["laws"][basis][name] = [float(x) for x in row["proposed"]]
+        written.add((basis, name))
         if basis != "nuisance":
             data["mismatch_ratio"][basis] = float(f"{row['ratio_ref']:.4g}")
         data["provenance"][basis] = (
             f"benchmarks/interval_factors.py on {', '.join(campaigns)}; emaprog "
             f"{__version__}, {datetime.date.today().isoformat()}"
         )
+    if ("nuisance", "hinge_moment") in written and ("nuisance", "hinge_stiffness") not in written:
+        # no spring among the unit campaigns: the spring's law on the unit basis is the hinge
+        # moment's factor and share (its load term is in another unit: none)
+        factor, share, _ = data["laws"]["nuisance"]["hinge_moment"]
+        data["laws"]["nuisance"]["hinge_stiffness"] = [factor, share, 0.0]
     path.write_text(json.dumps(data, indent=2) + "\n")
     return path
 

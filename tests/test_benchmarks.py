@@ -88,6 +88,36 @@ def test_calibration_recovers_the_law_the_errors_were_drawn_with():
     assert Cases(frame, "eccentricity_phase", incipient, twin=True).error.size == 0
 
 
+def test_written_unit_laws_give_the_spring_the_hinge_moments_factor_and_share(tmp_path):
+    """The unit campaigns have no aerodynamic spring: writing the unit basis' hinge-moment law
+    gives the spring's (basis unit) the same factor and share and no load term (its load is
+    in another unit), the form's spring law is left alone, and each written basis names the
+    campaign it comes from."""
+    import json
+    import shutil
+
+    from interval_factors import LAWS_FILE, write_laws
+
+    laws = tmp_path / "model_errors.json"
+    shutil.copy(LAWS_FILE, laws)
+    before = json.loads(laws.read_text())
+    results = tmp_path / "calunits"
+    results.mkdir()
+    manifest = {"campaign": "c", "campaign_file": "campaigns/c.yaml", "planned": 4}
+    (results / "manifest.json").write_text(json.dumps({**manifest, "content_hash": "ab" * 32}))
+    rows = [
+        {"basis": "unit", "quantity": "hinge_moment", "proposed": (5.5, 0.01, 0.02)},
+        {"basis": "unit", "quantity": "friction", "proposed": (1.5, 0.02, 0.001), "ratio_ref": 9.0},
+    ]
+    after = json.loads(write_laws(rows, [results], laws).read_text())
+    assert after["laws"]["nuisance"]["hinge_moment"] == [5.5, 0.01, 0.02]
+    assert after["laws"]["nuisance"]["hinge_stiffness"] == [5.5, 0.01, 0.0]
+    assert after["laws"]["form"]["hinge_stiffness"] == before["laws"]["form"]["hinge_stiffness"]
+    assert after["laws"]["unit"]["friction"] == [1.5, 0.02, 0.001]
+    assert after["mismatch_ratio"]["unit"] == 9.0
+    assert "campaigns/c.yaml (4 cases, hash abababababab)" in after["provenance"]["unit"]
+
+
 def test_commission_floor_recovers_the_model_error_the_errors_were_drawn_with():
     """Errors drawn as N(0, se^2 + floor^2) with a known floor of 3 % over 4000 units: the
     calibrated floor is within 0.4 points of it (the 90 % coverage quantile's sampling error
