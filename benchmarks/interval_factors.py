@@ -55,7 +55,13 @@ from _output import finish, parser  # the sibling module benchmarks/_output.py
 
 from emaprog.config import parameters
 from emaprog.faults import CATALOGUE, NUISANCES, QUANTITIES, fault_load
-from emaprog.identification.confidence import BASES, Z90, quantity_error, quantity_interval
+from emaprog.identification.confidence import (
+    BASES,
+    EXPLAINED_LIMIT_BASES,
+    Z90,
+    quantity_error,
+    quantity_interval,
+)
 from emaprog.identification.objective import NUISANCE_DEFAULTS
 
 TARGET = 0.90
@@ -218,7 +224,10 @@ def calibrate(directories: list[Path]) -> list[dict]:
             continue
         # the ratio the laws are calibrated under: the 95th percentile of the first results
         # directory of this basis (the calibration campaign; the others are checked)
-        ratio_ref = float(np.quantile(next(iter(chosen.values()))["floor_ratio"], 0.95))
+        first = next(iter(chosen.values()))["floor_ratio"]
+        ratio_ref = float(np.quantile(first, 0.95))
+        # and the worst fit among them: the form's explained limit (docs/reference.md, Confidence)
+        limit_ref = float(np.max(first))
         estimated = [
             n
             for n in NUISANCE_DEFAULTS
@@ -231,7 +240,9 @@ def calibrate(directories: list[Path]) -> list[dict]:
                 pooled(list(per.values())),
                 NUISANCE_FACTORS if name in NUISANCE_DEFAULTS else FACTORS,
             )
-            rows.append({**_row(name, basis, law, per), "ratio_ref": ratio_ref})
+            rows.append(
+                {**_row(name, basis, law, per), "ratio_ref": ratio_ref, "limit_ref": limit_ref}
+            )
     return rows
 
 
@@ -301,9 +312,15 @@ def write_laws(rows: list[dict], directories: list[Path], path: Path = LAWS_FILE
     campaigns = []
     for d in directories:
         manifest = json.loads((d / "manifest.json").read_text())
+        finished = len(list((d / "cases").glob("case-*.parquet")))
+        cases = (
+            f"{manifest['planned']} cases"
+            if finished >= manifest["planned"]
+            else f"the first {finished} of its {manifest['planned']} cases"
+        )
         campaigns.append(
             f"{manifest.get('campaign_file', manifest['campaign'])} "
-            f"({manifest['planned']} cases, hash {manifest['content_hash'][:12]})"
+            f"({cases}, hash {manifest['content_hash'][:12]})"
         )
     written = set()
     for row in rows:
@@ -316,6 +333,11 @@ def write_laws(rows: list[dict], directories: list[Path], path: Path = LAWS_FILE
         written.add((basis, name))
         if basis != "nuisance":
             data["mismatch_ratio"][basis] = float(f"{row['ratio_ref']:.4g}")
+        if basis in EXPLAINED_LIMIT_BASES:  # rounded up: the worst calibration fit stays in
+            digits = 10.0 ** (math.floor(math.log10(row["limit_ref"])) - 2)
+            data["explained_limit"][basis] = float(
+                f"{math.ceil(row['limit_ref'] / digits) * digits:.3g}"
+            )
         data["provenance"][basis] = (
             f"benchmarks/interval_factors.py on {', '.join(campaigns)}; emaprog "
             f"{__version__}, {datetime.date.today().isoformat()}"

@@ -102,7 +102,9 @@ def test_written_unit_laws_give_the_spring_the_hinge_moments_factor_and_share(tm
     shutil.copy(LAWS_FILE, laws)
     before = json.loads(laws.read_text())
     results = tmp_path / "calunits"
-    results.mkdir()
+    (results / "cases").mkdir(parents=True)
+    for case in range(4):
+        (results / "cases" / f"case-{case:06d}.parquet").touch()
     manifest = {"campaign": "c", "campaign_file": "campaigns/c.yaml", "planned": 4}
     (results / "manifest.json").write_text(json.dumps({**manifest, "content_hash": "ab" * 32}))
     rows = [
@@ -116,6 +118,37 @@ def test_written_unit_laws_give_the_spring_the_hinge_moments_factor_and_share(tm
     assert after["laws"]["unit"]["friction"] == [1.5, 0.02, 0.001]
     assert after["mismatch_ratio"]["unit"] == 9.0
     assert "campaigns/c.yaml (4 cases, hash abababababab)" in after["provenance"]["unit"]
+    assert after["explained_limit"] == before["explained_limit"]  # the unit basis has none
+
+
+def test_written_form_laws_take_the_worst_calibration_fit_as_the_explained_limit(tmp_path):
+    """On the form basis the ratio up to which the Monitor explains a recording is the worst
+    fit among the calibration units, rounded up to three digits so that it stays in (43.61
+    -> 43.7), beside the 95th percentile the laws are calibrated under; a calibration
+    stopped early names how many of its cases it holds."""
+    import json
+    import shutil
+
+    from interval_factors import LAWS_FILE, write_laws
+
+    laws = tmp_path / "model_errors.json"
+    shutil.copy(LAWS_FILE, laws)
+    results = tmp_path / "cal"
+    (results / "cases").mkdir(parents=True)
+    for case in range(3):
+        (results / "cases" / f"case-{case:06d}.parquet").touch()
+    manifest = {"campaign": "c", "campaign_file": "campaigns/c.yaml", "planned": 8}
+    (results / "manifest.json").write_text(json.dumps({**manifest, "content_hash": "cd" * 32}))
+    row = {"basis": "form", "quantity": "friction", "proposed": (4.0, 0.03, 0.001)}
+    after = json.loads(
+        write_laws([{**row, "ratio_ref": 26.31, "limit_ref": 43.61}], [results], laws).read_text()
+    )
+    assert after["explained_limit"]["form"] == 43.7
+    assert after["mismatch_ratio"]["form"] == 26.31
+    assert (
+        "campaigns/c.yaml (the first 3 of its 8 cases, hash cdcdcdcdcdcd)"
+        in (after["provenance"]["form"])
+    )
 
 
 def test_commission_floor_recovers_the_model_error_the_errors_were_drawn_with():
