@@ -88,6 +88,18 @@ def test_calibration_recovers_the_law_the_errors_were_drawn_with():
     assert Cases(frame, "eccentricity_phase", incipient, twin=True).error.size == 0
 
 
+def _results(directory, finished: int, planned: int, digest: str):
+    """A sweep results directory with ``finished`` (empty) case rows of ``planned``."""
+    import json
+
+    (directory / "cases").mkdir(parents=True)
+    for case in range(finished):
+        (directory / "cases" / f"case-{case:06d}.parquet").touch()
+    manifest = {"campaign": "c", "campaign_file": "campaigns/c.yaml", "planned": planned}
+    (directory / "manifest.json").write_text(json.dumps({**manifest, "content_hash": digest * 32}))
+    return directory
+
+
 def test_written_unit_laws_give_the_spring_the_hinge_moments_factor_and_share(tmp_path):
     """The unit campaigns have no aerodynamic spring: writing the unit basis' hinge-moment law
     gives the spring's (basis unit) the same factor and share and no load term (its load is
@@ -101,12 +113,7 @@ def test_written_unit_laws_give_the_spring_the_hinge_moments_factor_and_share(tm
     laws = tmp_path / "model_errors.json"
     shutil.copy(LAWS_FILE, laws)
     before = json.loads(laws.read_text())
-    results = tmp_path / "calunits"
-    (results / "cases").mkdir(parents=True)
-    for case in range(4):
-        (results / "cases" / f"case-{case:06d}.parquet").touch()
-    manifest = {"campaign": "c", "campaign_file": "campaigns/c.yaml", "planned": 4}
-    (results / "manifest.json").write_text(json.dumps({**manifest, "content_hash": "ab" * 32}))
+    results = _results(tmp_path / "calunits", finished=4, planned=4, digest="ab")
     rows = [
         {"basis": "unit", "quantity": "hinge_moment", "proposed": (5.5, 0.01, 0.02)},
         {"basis": "unit", "quantity": "friction", "proposed": (1.5, 0.02, 0.001), "ratio_ref": 9.0},
@@ -133,12 +140,7 @@ def test_written_form_laws_take_the_worst_calibration_fit_as_the_explained_limit
 
     laws = tmp_path / "model_errors.json"
     shutil.copy(LAWS_FILE, laws)
-    results = tmp_path / "cal"
-    (results / "cases").mkdir(parents=True)
-    for case in range(3):
-        (results / "cases" / f"case-{case:06d}.parquet").touch()
-    manifest = {"campaign": "c", "campaign_file": "campaigns/c.yaml", "planned": 8}
-    (results / "manifest.json").write_text(json.dumps({**manifest, "content_hash": "cd" * 32}))
+    results = _results(tmp_path / "cal", finished=3, planned=8, digest="cd")
     row = {"basis": "form", "quantity": "friction", "proposed": (4.0, 0.03, 0.001)}
     after = json.loads(
         write_laws([{**row, "ratio_ref": 26.31, "limit_ref": 43.61}], [results], laws).read_text()
