@@ -257,7 +257,7 @@ class GASettings(Strict):
         None,
         description=(
             "independent GA runs at most, each polished, the best fit kept, stopping once"
-            " two reach the same best fit (within 2 %); omitted: 1, or 4 for a unit with a"
+            " two reach the same best fit (within 0.1 %); omitted: 1, or 4 for a unit with a"
             " PWM drive or a logger's chain"
         ),
     )
