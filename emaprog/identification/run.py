@@ -76,9 +76,9 @@ FORM_RUNS = 4
 #: Not 2 %: on ``campaigns/calibration-pwm.yaml`` the fit is flat along the friction, and
 #: polished runs within 2 % of the best fit read the friction a median 1.8 points apart
 #: on the 53 units that had two such runs (one unit's: fits 1.753 and 1.765e-4, friction
-#: -6.0 and +5.1 %). The 88 of its 400
-#: units that had stopped at 2 % after two or three runs were within tolerance in friction
-#: 75 % and backlash 78 %, made to 0.1 % 77 and 82 % (82 of them then made all four runs);
+#: -6.0 and +5.1 %). The 88 of its 400 units that had stopped at 2 % after two or three
+#: runs were within tolerance in friction 75 % and backlash 78 %, made to 0.1 % 77 and
+#: 82 % (82 of them then made all four runs);
 #: over the 400, friction 85.25 -> 85.75 %, backlash 87.25 -> 88 %, short circuit and zeta
 #: 0.25-0.5 points up, the identification 27.9 -> 31.6 s (mean, a slow 2-core machine).
 #: On robustness-pwm's 28 such units friction fell (85.5 -> 81.5 % of the 200 within),
