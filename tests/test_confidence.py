@@ -251,7 +251,8 @@ def test_every_polar_fault_gets_its_own_plane_and_its_own_errors():
         Gene("wobble_zeta", 0.0, 0.8, False),
         Gene("wobble_phase", 0.0, 2 * math.pi, True),
     ]
-    coords, point = _coordinates(SimpleNamespace(genes=genes), values, planes)
+    objective = SimpleNamespace(genes=genes, params=SimpleNamespace(hysteresis_form=True))
+    coords, point = _coordinates(objective, values, planes)
     assert [c.name for c in coords] == [
         "friction",
         "eccentricity_x",
@@ -270,6 +271,47 @@ def test_every_polar_fault_gets_its_own_plane_and_its_own_errors():
     )
     assert errors["wobble_zeta"] == pytest.approx(0.1, rel=1e-12)  # isotropic: the same
     assert errors["wobble_phase"] == pytest.approx(0.1 / 0.1, rel=1e-12)  # across / zeta
+
+
+def test_the_jacobian_on_another_form_is_the_slope_over_its_span():
+    """On a Monitor of another form (PWM drive, logger chain) the residual is a staircase in
+    the parameters (docs/reference.md, Confidence: ``FORM_STEP_SHARE``): the Jacobian takes
+    its differences over a twentieth of each span, and there its columns are the slope, the
+    secant over twice the step agreeing within 20 % (measured 4-14 % on the friction, the
+    shorts and the eccentricity at a healthy unit; over a tenth of the step the secants read
+    1.2-3.5 times it, the jumps); a hysteresis unit keeps the fine step."""
+    from emaprog.identification.confidence import (
+        FORM_STEP_SHARE,
+        STEP_SHARE,
+        _coordinates,
+        _values,
+        jacobian,
+    )
+    from emaprog.identification.objective import Objective, fine_plant
+    from emaprog.models.common import inputs
+
+    sc = load_scenario(CONFIGS / "chirp-pwm.yaml")
+    params = parameters.load("default-pwm")
+    assert not params.hysteresis_form and parameters.load("default").hysteresis_form
+    objective = Objective(reference.simulate(sc, params), inputs(sc, params), params, sc.identify)
+    values = objective.values(objective.healthy_genes())
+    coords, jac = jacobian(objective, values)
+    _, point = _coordinates(objective, values)
+    spans = {g.quantity: g.upper - g.lower for g in objective.genes}
+    assert coords[0].step == pytest.approx(FORM_STEP_SHARE * spans[coords[0].name])
+    assert FORM_STEP_SHARE >= 10 * STEP_SHARE
+    checked = 0
+    for k, c in enumerate(coords):
+        if c.name == "backlash":  # a dead zone: not linear from 0, by nature
+            continue
+        up = min(point[c.name] + 2 * c.step, c.upper)
+        down = max(point[c.name] - 2 * c.step, c.lower)
+        rows = [objective.genes_for(_values(values, {**point, c.name: x})) for x in (up, down)]
+        moved = objective.residuals(np.array(rows), fine_plant(params.plant))
+        secant = float(np.linalg.norm(moved[0] - moved[1])) / (up - down)
+        assert float(np.linalg.norm(jac[:, k])) == pytest.approx(secant, rel=0.2), c.name
+        checked += 1
+    assert checked >= 6  # friction, three shorts, the eccentricity's plane
 
 
 @pytest.mark.parametrize(

@@ -129,6 +129,18 @@ def named_phase(
 
 #: Finite-difference step per quantity, as a share of its search span.
 STEP_SHARE = 2e-3
+#: ... on a Monitor of another form than the hysteresis drive with an ideal chain (a PWM
+#: drive's loop, a logger's filters): its residual is a staircase in the parameters, with
+#: jumps (an event a Monitor step earlier or later) as large as the slope over a few
+#: steps, so a difference over :data:`STEP_SHARE` measures the jumps. Measured on
+#: robustness-pwm units at their estimates, the secant over k x 2e-3 of the span for
+#: k = 0.5, 1, 2, 5, 10, 20, 50: shorted fractions 3.0, 1.6, 0.80, 0.56, 0.49, 0.43, 0.39,
+#: the eccentricity's x 0.12, 0.52, 0.32, 0.31, 0.22, 0.18, 0.16 (under the hysteresis drive
+#: within +-25 % at every k). At 2e-3 a healthy rotor's zeta sigma read 0.014-0.019 and a
+#: faulty one's 0.003-0.004 on the same recordings, at 5e-2 both 0.006-0.02: the difference
+#: was the jumps. A twentieth of the span is the slope over the range the intervals span;
+#: with it the form's calibrated model-error factors fell from 2.7-17 to 1.0-9.9.
+FORM_STEP_SHARE = 5e-2
 #: The nuisances' model-error laws (deviation: from :data:`~.objective.NUISANCE_DEFAULTS`),
 #: calibrated like the faults' on the 400 calibration units (``benchmarks/interval_factors.py``:
 #: the linearised error alone held the true hinge moment in 21 % of them and the resistance
@@ -281,12 +293,14 @@ PLANE_COORDINATES = frozenset(n for p in PLANES for n in (p.x, p.y))
 def _coordinates(
     objective: Objective, values: dict[str, float], planes: tuple[_Plane, ...] = PLANES
 ) -> tuple[list[_Coordinate], dict]:
-    """The smooth coordinates of the estimate: genes, each polar fault in its plane."""
+    """The smooth coordinates of the estimate: genes, each polar fault in its plane, each with
+    its finite-difference step (:data:`STEP_SHARE`, :data:`FORM_STEP_SHARE`)."""
+    share = STEP_SHARE if objective.params.hysteresis_form else FORM_STEP_SHARE
     coords, point = [], {}
     angles = {p.angle for p in planes}
     by_magnitude = {p.magnitude: p for p in planes}
     for gene in objective.genes:
-        step = STEP_SHARE * (gene.upper - gene.lower)
+        step = share * (gene.upper - gene.lower)
         if gene.quantity in angles:
             continue
         plane = by_magnitude.get(gene.quantity)
