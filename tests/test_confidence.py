@@ -280,6 +280,8 @@ def test_the_jacobian_on_another_form_is_the_slope_over_its_span():
     secant over twice the step agreeing within 20 % (measured 4-14 % on the friction, the
     shorts and the eccentricity at a healthy unit; over a tenth of the step the secants read
     1.2-3.5 times it, the jumps); a hysteresis unit keeps the fine step."""
+    from types import SimpleNamespace
+
     from emaprog.identification.confidence import (
         FORM_STEP_SHARE,
         STEP_SHARE,
@@ -299,7 +301,9 @@ def test_the_jacobian_on_another_form_is_the_slope_over_its_span():
     _, point = _coordinates(objective, values)
     spans = {g.quantity: g.upper - g.lower for g in objective.genes}
     assert coords[0].step == pytest.approx(FORM_STEP_SHARE * spans[coords[0].name])
-    assert FORM_STEP_SHARE >= 10 * STEP_SHARE
+    hysteresis = SimpleNamespace(genes=objective.genes, params=parameters.load("default"))
+    fine, _ = _coordinates(hysteresis, values)
+    assert fine[0].step == pytest.approx(STEP_SHARE * spans[fine[0].name])
     checked = 0
     for k, c in enumerate(coords):
         if c.name == "backlash":  # a dead zone: not linear from 0, by nature

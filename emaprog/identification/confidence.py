@@ -17,7 +17,9 @@ Three questions, answered after the optimiser has its estimate:
    respect to each estimated quantity, by finite differences of the Monitor at
    the estimate, with unquantised feedback (as in commissioning: the ADC makes
    the residual a staircase in the parameters). Eccentricity is differentiated
-   in the plane ``(zeta cos phi, zeta sin phi)``, where it is smooth.
+   in the plane ``(zeta cos phi, zeta sin phi)``, where it is smooth. The step is
+   :data:`STEP_SHARE` of each search span, :data:`FORM_STEP_SHARE` on a Monitor of another
+   form, whose residual jumps at that scale.
 
 3. **How far can each estimate be off?** The linearised covariance of a
    weighted least-squares estimate with correlated residuals, the sandwich
