@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import difflib
+import math
+import re
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
@@ -28,6 +30,23 @@ class InputError(Exception):
         self.message = message
         where = f"{self.source}: {key}: " if key else f"{self.source}: "
         super().__init__(where + message)
+
+
+def past_limit(value: float, limit: float, spec: str) -> str:
+    """``value`` in the format ``spec`` (``.N%``, ``.Nf``, ``.Ng`` or ``.Ne``) with as many
+    more digits as it takes not to read as ``limit``: a value refused for lying past its
+    limit must not print as the limit itself ("misses 10 % (at most 10 %)" for 0.1004)."""
+    match = re.fullmatch(r"\.(\d+)([%fge])", spec)
+    if match is None:
+        raise ValueError(f"format {spec!r} is not .N%, .Nf, .Ng or .Ne")
+    digits, kind = int(match.group(1)), match.group(2)
+    scale = 100.0 if kind == "%" else 1.0
+    text = format(value, spec)
+    for extra in range(1, 7):
+        if value == limit or not math.isclose(float(text.rstrip("%")) / scale, limit):
+            break
+        text = format(value, f".{digits + extra}{kind}")
+    return text
 
 
 def key_path(loc: Sequence[str | int], tags: Iterable[str] = ()) -> str:

@@ -210,3 +210,22 @@ def test_identification_against_the_unit_can_use_its_commissioning_recording(tmp
     assert report["correction"]["applied"] == "reference"
     assert "not found" in report["correction"]["note"]
     assert abs(report["estimate"]["short_circuit"]["b"] - true_fraction) < 0.03
+
+
+@pytest.mark.parametrize(
+    "missed,shown", [(0.1004, "10.04 %"), (0.10000004, "10.000004 %"), (0.137, "14 %")]
+)
+def test_a_refusal_never_prints_the_residual_as_its_limit(missed, shown):
+    """The issue's refusal read "misses 10 % of the current's RMS (at most 10 %)": the residual
+    rounded to the limit it broke. It gets the digits that tell it from the limit, no more."""
+    from types import SimpleNamespace
+
+    from emaprog.errors import InputError
+    from emaprog.fitting.commission import MAX_CURRENT_RESIDUAL, check_explained
+
+    fit = SimpleNamespace(residuals=[{"current": missed, "position": 0.0, "speed": 0.0}])
+    with pytest.raises(InputError) as refused:
+        check_explained(fit, [SimpleNamespace(source="rig/healthy-1.csv")])
+    message = refused.value.message.replace("%", " %")
+    assert f"misses {shown} of the current's RMS" in message
+    assert f"(at most {MAX_CURRENT_RESIDUAL:.0%})".replace("%", " %") in message

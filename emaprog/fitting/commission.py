@@ -36,7 +36,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ..config.parameters import Parameters
-from ..errors import InputError
+from ..errors import InputError, past_limit
 from ..faults import healthy_values, monitor_form
 from ..identification.confidence import correlation_length, information_inverse
 from ..identification.objective import (
@@ -562,8 +562,9 @@ def check_explained(fit_result: Fit, recordings: list[Recording]) -> None:
         if residual["current"] > MAX_CURRENT_RESIDUAL:
             raise InputError(
                 recording.source,
-                "cannot commission: after the fit the healthy "
-                f"Monitor still misses {residual['current']:.0%} of the current's RMS "
+                "cannot commission: after the fit the healthy Monitor still misses "
+                f"{past_limit(residual['current'], MAX_CURRENT_RESIDUAL, '.0%')} of the "
+                "current's RMS "
                 f"(at most {MAX_CURRENT_RESIDUAL:.0%}); is the unit healthy, the "
                 "recording of this actuator, and the column map right?",
                 "current",

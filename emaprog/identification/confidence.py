@@ -59,6 +59,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..errors import past_limit
 from ..faults import (
     CATALOGUE,
     FAULTS,
@@ -585,7 +586,7 @@ def assess(
         if not floor.explained:
             inconclusive[fault] = (
                 f"the Monitor does not explain the recording: fitness "
-                f"{fitness:.3g} is {floor.ratio:.0f} x the recording's noise "
+                f"{fitness:.3g} is {past_limit(floor.ratio, floor.limit, '.0f')} x the recording's noise "
                 f"floor {floor.fitness:.3g} (at most {floor.limit:g} x)"
             )
             continue

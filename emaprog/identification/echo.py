@@ -25,6 +25,7 @@ import numpy as np
 
 from ..config.parameters import Parameters
 from ..config.scenario import IdentifySettings
+from ..errors import past_limit
 from ..faults import QUANTITIES, reference_form
 from ..io.storage import Trace
 from ..models import reference
@@ -54,12 +55,16 @@ def off_calibration(
     fit-to-floor ratio, against ``ratio_limit`` (its basis's calibration ratio)."""
     reasons = []
     if math.isfinite(ratio) and ratio > ratio_limit:
-        reasons.append(f"fit {ratio:.3g} x its noise floor (calibrated up to {ratio_limit:g} x)")
+        reasons.append(
+            f"fit {past_limit(ratio, ratio_limit, '.3g')} x its noise floor "
+            f"(calibrated up to {ratio_limit:g} x)"
+        )
     recorded = [s for s in CALIBRATED_NOISE if not (s == "speed" and _speed_derived(trace))]
     noisiest = max(recorded, key=lambda s: noise[s] / CALIBRATED_NOISE[s])
     if noise[noisiest] / CALIBRATED_NOISE[noisiest] > NOISE_LIMIT:
         reasons.append(
-            f"{noisiest} noise {noise[noisiest] / CALIBRATED_NOISE[noisiest]:.3g} x "
+            f"{noisiest} noise "
+            f"{past_limit(noise[noisiest] / CALIBRATED_NOISE[noisiest], NOISE_LIMIT, '.3g')} x "
             f"the calibration's (at most {NOISE_LIMIT:g} x)"
         )
     duration = float(trace.time[-1] - trace.time[0])
