@@ -26,19 +26,10 @@ import pandas as pd
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _output import finish, parser  # noqa: E402
 
+from emaprog.config.parameters import COMMISSIONED  # noqa: E402
+
 Z90 = 1.6448536269514722
-PARAMETERS = (
-    "motor_inertia",
-    "surface_inertia",
-    "motor_viscous",
-    "dynamic_friction",
-    "static_friction",
-    "phase_resistance",
-    "back_emf_constant",
-    "phase_inductance",
-    "transmission_stiffness",
-    "hinge_moment",
-)
+PARAMETERS = (*COMMISSIONED, "hinge_moment")
 
 
 def pairs(frame: pd.DataFrame, name: str) -> tuple[np.ndarray, np.ndarray]:

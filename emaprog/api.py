@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal, NamedTuple
 
@@ -249,6 +249,8 @@ class Commissioned:
     hinge_moments: list[float]  # [N m] per recording
     residual: float
     hinge_stiffnesses: list[float] | None = None  # [N m/rad] per recording, when fitted
+    #: fitted under the base set's tolerances, barely narrowed by the recordings
+    from_tolerance: list[str] = field(default_factory=list)
 
 
 def _measured(
@@ -399,6 +401,7 @@ def commission(
         result.hinge_moments,
         result.residual,
         result.hinge_stiffnesses if any(result.stiffness_errors) else None,
+        list(result.from_tolerance),
     )
 
 

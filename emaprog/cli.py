@@ -273,6 +273,11 @@ def commission(
         )
     if unit.not_determined:
         typer.echo(f"held at the base value (not determined): {', '.join(unit.not_determined)}")
+    if unit.from_tolerance:
+        typer.echo(
+            "within the build tolerances, barely narrowed by the recordings: "
+            + ", ".join(unit.from_tolerance)
+        )
     for line in unit.degenerate:
         typer.echo(f"weakly determined: {line}")
     typer.echo(

@@ -13,7 +13,15 @@ from importlib import resources
 from pathlib import Path
 from typing import Annotated, Literal, NamedTuple
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    create_model,
+    field_validator,
+    model_validator,
+)
 
 from ..errors import InputError, from_validation_error
 from ..faults import CATALOGUE
@@ -30,6 +38,21 @@ from .yamlfile import catalogue_fields, load_mapping
 Pos = Annotated[float, Field(strict=True, gt=0)]
 NonNeg = Annotated[float, Field(strict=True, ge=0)]
 Real = Annotated[float, Field(strict=True)]
+
+
+#: The parameters that vary from unit to unit and commissioning fits (docs/reference.md,
+#: Commissioning; :data:`emaprog.fitting.commission.UNKNOWNS` gives their bounds).
+COMMISSIONED = (
+    "motor_inertia",
+    "surface_inertia",
+    "motor_viscous",
+    "dynamic_friction",
+    "static_friction",
+    "phase_resistance",
+    "back_emf_constant",
+    "phase_inductance",
+    "transmission_stiffness",
+)
 
 
 class _Section(BaseModel):
@@ -328,6 +351,14 @@ class Commissioning(_Section):
         description="combinations of parameters the recordings barely constrain, in words"
     )
     residual: NonNeg = Field(description="RMS of the whole normalised fit residual [-]")
+    tolerances: dict[str, float] | None = Field(
+        None, description="the base set's build tolerances the fit took as its prior (none: none)"
+    )
+    from_tolerance: list[str] = Field(
+        default_factory=list,
+        description="parameters with a tolerance that the recordings barely narrow: fitted, "
+        "but their value is the tolerance's as much as the recordings'",
+    )
 
 
 class ParameterFile(_Section):
@@ -348,6 +379,23 @@ class ParameterFile(_Section):
     commissioning: Commissioning | None = Field(
         None, description="a commissioned unit's provenance (emaprog commission)"
     )
+    tolerances: dict[str, Annotated[float, Field(strict=True, gt=0.0, le=1.0)]] | None = Field(
+        None,
+        description="build tolerances (relative, +/-) of the parameters that vary from unit "
+        "to unit, from the datasheets: commissioning's prior (docs/reference.md, "
+        "Commissioning); omitted: none",
+    )
+
+    @field_validator("tolerances")
+    @classmethod
+    def _tolerance_names(cls, value):
+        unknown = sorted(set(value or ()) - set(COMMISSIONED))
+        if unknown:
+            raise ValueError(
+                f"no tolerance for {', '.join(unknown)}: commissioning fits "
+                f"{', '.join(COMMISSIONED)}"
+            )
+        return value
 
 
 # ---------------------------------------------------------------- kernel structs
@@ -366,6 +414,8 @@ class Parameters(NamedTuple):
         ``motor`` section dumps as before, so that its campaigns keep their hashes."""
         values = self.spec.model_dump(mode="json")
         values["drive"] = _unset_gains(values["drive"])
+        if values.get("tolerances") is None:  # sets without tolerances keep their hashes
+            values.pop("tolerances", None)
         for key, default in (("motor", Motor()), ("drive", CurrentLoop())):
             if values.get(key) == _unset_gains(default.model_dump(mode="json")):
                 del values[key]

@@ -35,7 +35,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy.optimize import least_squares
 
-from ..config.parameters import Parameters
+from ..config.parameters import COMMISSIONED, Parameters
 from ..errors import InputError, past_limit
 from ..faults import healthy_values, monitor_form
 from ..identification.confidence import correlation_length, information_inverse
@@ -77,6 +77,8 @@ UNKNOWNS = (
     Unknown("phase_inductance", "electrical", 0.6, 1.6),
     Unknown("transmission_stiffness", "mechanical", 0.4, 2.0),
 )
+assert tuple(u.name for u in UNKNOWNS) == COMMISSIONED  # the parameter set's tolerance keys
+
 #: [-] standard error of a log factor above which a parameter counts as not determined
 #: (5 %: half the smallest build tolerance (docs/reference.md, Campaign YAML) that matters, the inertias' 10 %).
 MAX_LOG_ERROR = 0.05
@@ -169,6 +171,9 @@ class Fit(NamedTuple):
     residuals: list[dict[str, float]]  # per recording, per signal, relative RMS
     residual: float  # RMS of the whole normalised residual
     evaluations: int
+    #: parameters with a tolerance that the recordings barely narrow: their value is the
+    #: tolerance's as much as the recordings' (:data:`PRIOR_DOMINATED`)
+    from_tolerance: tuple[str, ...] = ()
 
 
 def prepare(trace: Trace, source: str, params: Parameters) -> Recording:
@@ -234,6 +239,15 @@ class _Problem:
         # the plant the batched runs' unit rows are applied to (its other values: the set's)
         self.base = fine_plant(params.plant)
         self.evaluations = 0
+        # the tolerances' prior rows (:func:`prior_widths`): none until _solve sets them
+        self.prior = np.full(len(free), np.inf)
+        self.prior_weight = 0.0
+
+    def prior_rows(self, x: np.ndarray) -> np.ndarray:
+        """The prior's residual rows: weight x log factor / its width, one per free unknown
+        with a tolerance (none without)."""
+        given = np.isfinite(self.prior)
+        return self.prior_weight * np.asarray(x[: len(self.free)])[given] / self.prior[given]
 
     def plant(self, factors: dict[str, float]) -> Plant:
         base = self.params.plant
@@ -302,7 +316,7 @@ class _Problem:
             drive = drive._replace(load_stiffness=drive.load_stiffness + float(spring))
             self.family.simulate_monitor(drive, plant, self.faults, self.options, out)
             parts += self._residual(recording, (out.current, out.position, out.speed))
-        return np.concatenate(parts)
+        return np.concatenate([*parts, self.prior_rows(x)])
 
     def batch(self, fun, points) -> list[np.ndarray]:
         """``least_squares``'s ``workers``: the residuals at every point of a finite-difference
@@ -337,7 +351,7 @@ class _Problem:
             )
             for j in range(m):
                 parts[j] += self._residual(recording, (current[j], position[j], speed[j]))
-        return [np.concatenate(p) for p in parts]
+        return [np.concatenate([*p, self.prior_rows(x)]) for p, x in zip(parts, xs)]
 
 
 def _free_bounds(
@@ -362,8 +376,27 @@ def _free_bounds(
     return np.array(lower), np.array(upper)
 
 
-def _solve(recordings, params, free, x0, spring):
+def prior_widths(params: Parameters, free: list[str]) -> np.ndarray:
+    """The prior's standard deviation of each free log factor: a build tolerance +-t read as
+    uniform, ``t / sqrt(3)`` (the static friction's on its ratio to the dynamic); inf where
+    the set gives no tolerance."""
+    tolerances = params.spec.tolerances or {}
+    return np.array(
+        [
+            tolerances.get("static_friction" if name == "ratio" else name, math.inf)
+            / math.sqrt(3.0)
+            for name in free
+        ]
+    )
+
+
+def _solve(recordings, params, free, x0, spring, prior=None, prior_weight=0.0):
+    """One fit from ``x0``; with ``prior`` (:func:`prior_widths`) and its weight, the maximum
+    a posteriori one. Returns the problem, the result (its residual and Jacobian the
+    recordings' alone), the covariance of the unknowns and the recordings' information."""
     problem = _Problem(recordings, params, free, spring)
+    if prior is not None:
+        problem.prior, problem.prior_weight = np.asarray(prior, float), float(prior_weight)
     lower, upper = _free_bounds(free, len(recordings), params, spring)
     with serial_blas():
         # a robust (soft L1) pass first, then the plain least squares whose Jacobian gives the
@@ -396,11 +429,19 @@ def _solve(recordings, params, free, x0, spring):
             workers=problem.batch,
         )
         # the covariance on one BLAS thread too: the same numbers whatever the thread count
+        data = result.fun.size - problem.prior_rows(result.x).size
+        result.fun, result.jac = result.fun[:data], np.asarray(result.jac)[:data]
         jac = result.jac
         dof = max(result.fun.size - jac.shape[1], 1)
         s2 = float(result.fun @ result.fun) / dof
         information = jac.T @ jac
         cov = s2 * correlation_length(result.fun, problem.blocks) * information_inverse(information)
+        if np.isfinite(problem.prior).any():
+            # the prior's information in the recordings' units: the posterior's covariance
+            scale = s2 * correlation_length(result.fun, problem.blocks)
+            widths = np.full(jac.shape[1], np.inf)
+            widths[: len(free)] = problem.prior
+            cov = scale * information_inverse(information + np.diag(scale / widths**2))
     return problem, result, cov, information
 
 
@@ -469,6 +510,26 @@ def spring_evidence(problem: _Problem, result) -> tuple[np.ndarray, np.ndarray]:
     return step, np.sqrt(np.maximum(np.diag(cov), 0.0))
 
 
+#: [-] a parameter with a tolerance whose posterior standard error is above this share of
+#: its prior's is set by the tolerance rather than by the recordings: the recordings narrow
+#: its spread by less than a fifth of the prior's (reported apart, ``from_tolerance``).
+PRIOR_DOMINATED = 0.9
+#: The prior's weight in the first fit under tolerances, before the fit's own residual
+#: variance and correlation length give it (about a third of what they give on
+#: robustness-pwm's commissioning recordings, 0.05-0.06): weak enough that the recordings
+#: lead, strong enough that an unconstrained parameter stays near its base value.
+PRIOR_START_WEIGHT = 0.02
+
+
+def _prior_weight(problem: _Problem, result) -> float:
+    """The prior's weight in the final fit under tolerances: the first fit's residual
+    variance times its correlation length, the scale in which the recordings' information
+    is counted (the covariance of :func:`_solve`)."""
+    dof = max(result.fun.size - result.jac.shape[1], 1)
+    variance = float(result.fun @ result.fun) / dof
+    return math.sqrt(variance * correlation_length(result.fun, problem.blocks))
+
+
 def _fit(
     recordings: list[Recording], params: Parameters, spring: bool
 ) -> tuple[Fit, _Problem, object]:
@@ -478,10 +539,17 @@ def _fit(
     held: list[str] = []
     x0 = np.zeros(len(free) + len(recordings) * (2 if spring else 1))
     evaluations = 0
+    tolerated = bool(params.spec.tolerances)
+    weight = PRIOR_START_WEIGHT if tolerated else 0.0
     while True:
-        problem, result, cov, information = _solve(recordings, params, free, x0, spring)
+        widths = prior_widths(params, free)
+        problem, result, cov, information = _solve(
+            recordings, params, free, x0, spring, widths, weight
+        )
         evaluations += problem.evaluations
         errors = np.sqrt(np.maximum(np.diag(cov)[: len(free)], 0.0))  # inf: not constrained
+        # a parameter with a tolerance is never held: the tolerance bounds it
+        errors = np.where(np.isfinite(widths), 0.0, errors)
         worst = int(np.argmax(errors)) if free else -1
         if free and errors[worst] > MAX_LOG_ERROR:
             name = free.pop(worst)
@@ -489,6 +557,18 @@ def _fit(
             x0 = np.delete(result.x, worst)
             continue
         break
+    from_tolerance: tuple[str, ...] = ()
+    if tolerated:
+        problem, result, cov, information = _solve(
+            recordings, params, free, result.x, spring, widths, _prior_weight(problem, result)
+        )
+        evaluations += problem.evaluations
+        errors = np.sqrt(np.maximum(np.diag(cov)[: len(free)], 0.0))
+        from_tolerance = tuple(
+            "static_friction" if n == "ratio" else n
+            for n, e, w in zip(free, errors, widths)
+            if math.isfinite(w) and e > PRIOR_DOMINATED * w
+        )
     factors = problem.factors(result.x)
     plant = problem.plant(factors)
     values = {u.name: float(getattr(getattr(plant, u.section), u.name)) for u in UNKNOWNS}
@@ -532,6 +612,7 @@ def _fit(
             residuals,
             float(np.sqrt(np.mean(result.fun**2))),
             evaluations,
+            from_tolerance,
         ),
         problem,
         result,
@@ -657,6 +738,12 @@ def unit_set(
                 f"; held at base: {', '.join(fit_result.not_determined)}"
                 if fit_result.not_determined
                 else ""
+            )
+            + (
+                f"; within the build tolerances, barely narrowed by the recordings: "
+                f"{', '.join(fit_result.from_tolerance)}"
+                if fit_result.from_tolerance
+                else ""
             ),
             *_drive_note(base),
         ],
@@ -669,6 +756,14 @@ def unit_set(
             "not_determined": fit_result.not_determined,
             "degenerate": fit_result.degenerate,
             "residual": fit_result.residual,
+            **(
+                {
+                    "tolerances": dict(base.spec.tolerances),
+                    "from_tolerance": list(fit_result.from_tolerance),
+                }
+                if base.spec.tolerances
+                else {}
+            ),
         },
     )
     text = yaml.safe_dump(spec, sort_keys=False, width=100)
