@@ -160,6 +160,9 @@ def test_cli_demo_writes_the_report_and_is_reproducible(tmp_path):
             "emaprog_version",
         ):
             assert key in report
+        # the libraries and CPU the numbers came from (docs/reference.md, Identification report)
+        assert {"numpy", "scipy", "numba", "python", "machine", "cpu"} <= set(report["environment"])
+        assert all(isinstance(v, str) and v for v in report["environment"].values())
         for figure in ("fit.png", "convergence.png", "report.md"):
             assert (tmp_path / run / figure).stat().st_size > 1000
         report.pop("elapsed_s")

@@ -63,6 +63,7 @@ def test_every_trace_column_fault_quantity_and_report_key_is_documented():
         "seed",
         "settings",
         "emaprog_version",
+        "environment",
         "inspection",
         "short_circuit_phase",
     ]

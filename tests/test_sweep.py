@@ -135,6 +135,10 @@ def test_sweep_writes_one_file_per_case_with_spec_columns_and_summary(tiny):
     assert meta["campaign_hash"] == outcome.summary["campaign_hash"] and meta["case_id"] == 0
     summary = json.loads((folder / "summary.json").read_text())
     assert summary["finished"] == 8 and summary["failed"] == 0
+    # the libraries and CPU the numbers came from, in the summary, the manifest and each case
+    for record in (summary, json.loads((folder / "manifest.json").read_text()), meta):
+        assert {"numpy", "scipy", "numba", "cpu"} <= set(record["environment"])
+    assert summary["environment"]["cpu"] in (folder / "summary.md").read_text()
     assert (folder / "parity.png").stat().st_size > 10_000
     assert (folder / "errors.png").stat().st_size > 10_000
     assert "parity.png" in (folder / "summary.md").read_text()

@@ -14,6 +14,7 @@ import pandas as pd
 from .. import __version__
 from ..config.parameters import Parameters
 from ..config.scenario import Campaign, Scenario
+from ..environment import environment
 from ..errors import InputError
 from ..io.storage import write_json
 from .executors import execute, worker_count
@@ -118,6 +119,7 @@ def run_campaign(
         "scenario": base.name,
         "parameters": params.source_file,
         "emaprog_version": __version__,
+        "environment": environment(),
     }
     todo, finished = open_store(
         store,

@@ -315,6 +315,16 @@ def compare(summary: dict, baseline: dict) -> list[str]:
     return worse
 
 
+def _environment_text(summary: dict) -> str:
+    """The machine and libraries the summary was computed on, as a clause (none in a summary
+    written before they were recorded)."""
+    found = summary.get("environment")
+    if not found:
+        return ""
+    libraries = ", ".join(f"{k} {v}" for k, v in found.items() if k not in ("machine", "cpu"))
+    return f" on {found.get('machine')} ({found.get('cpu')} CPU) with {libraries}"
+
+
 def _cell(value, fmt: str = "{:.3g}") -> str:
     if value is None or (isinstance(value, float) and math.isnan(value)):
         return "—"
@@ -344,7 +354,7 @@ def markdown(summary: dict) -> str:
 
 Campaign `{summary["campaign_file"]}` (hash `{summary["campaign_hash"][:12]}`), base scenario
 `{summary["scenario"]}`, parameter set `{summary["parameters"]}`, seed {summary["seed"]},
-emaprog {summary["emaprog_version"]}. Finished cases: {summary["cases"]} of {summary["planned"]};
+emaprog {summary["emaprog_version"]}{_environment_text(summary)}. Finished cases: {summary["cases"]} of {summary["planned"]};
 failed: {failures}{" (see failures/)" if failures else ""}.
 
 ## Identification error

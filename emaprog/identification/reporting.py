@@ -10,6 +10,7 @@ from .. import __version__
 from ..config import parameters as parameter_sets
 from ..config.parameters import Parameters
 from ..config.scenario import IdentifySettings
+from ..environment import environment
 from ..faults import PHASE_FAULTS, QUANTITIES, nested
 from . import result as verdicts
 from .confidence import confidence_record
@@ -118,6 +119,7 @@ def report_data(
         "parameters": params.source_file,
         "inspection": inspection,
         "emaprog_version": __version__,
+        "environment": environment(),
     }
 
 
