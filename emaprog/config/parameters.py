@@ -352,7 +352,7 @@ class Commissioning(_Section):
     )
     residual: NonNeg = Field(description="RMS of the whole normalised fit residual [-]")
     tolerances: dict[str, float] | None = Field(
-        None, description="the base set's build tolerances the fit took as its prior (none: none)"
+        None, description="the base set's build tolerances the fit took as its prior (null: none)"
     )
     from_tolerance: list[str] = Field(
         default_factory=list,

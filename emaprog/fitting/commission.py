@@ -242,6 +242,7 @@ class _Problem:
         # the tolerances' prior rows (:func:`prior_widths`): none until _solve sets them
         self.prior = np.full(len(free), np.inf)
         self.prior_weight = 0.0
+        self.scale = math.nan  # the fit's information scale, once _solve has solved it
 
     def prior_rows(self, x: np.ndarray) -> np.ndarray:
         """The prior's residual rows: weight x log factor / its width, one per free unknown
@@ -435,13 +436,15 @@ def _solve(recordings, params, free, x0, spring, prior=None, prior_weight=0.0):
         dof = max(result.fun.size - jac.shape[1], 1)
         s2 = float(result.fun @ result.fun) / dof
         information = jac.T @ jac
-        cov = s2 * correlation_length(result.fun, problem.blocks) * information_inverse(information)
-        if np.isfinite(problem.prior).any():
-            # the prior's information in the recordings' units: the posterior's covariance
-            scale = s2 * correlation_length(result.fun, problem.blocks)
+        # the residual variance times its correlation length: the recordings' information's
+        # scale (and, under tolerances, the prior's weight in the next fit: _fit)
+        problem.scale = s2 * correlation_length(result.fun, problem.blocks)
+        posterior = information
+        if np.isfinite(problem.prior).any():  # the prior's information in the same scale
             widths = np.full(jac.shape[1], np.inf)
             widths[: len(free)] = problem.prior
-            cov = scale * information_inverse(information + np.diag(scale / widths**2))
+            posterior = information + np.diag(problem.scale / widths**2)
+        cov = problem.scale * information_inverse(posterior)
     return problem, result, cov, information
 
 
@@ -514,20 +517,11 @@ def spring_evidence(problem: _Problem, result) -> tuple[np.ndarray, np.ndarray]:
 #: its prior's is set by the tolerance rather than by the recordings: the recordings narrow
 #: its spread by less than a fifth of the prior's (reported apart, ``from_tolerance``).
 PRIOR_DOMINATED = 0.9
-#: The prior's weight in the first fit under tolerances, before the fit's own residual
-#: variance and correlation length give it (about a third of what they give on
+#: The prior's weight in the first fit under tolerances, before the fit's own information
+#: scale (residual variance times correlation length, :func:`_solve`) gives it (about a third of what they give on
 #: robustness-pwm's commissioning recordings, 0.05-0.06): weak enough that the recordings
 #: lead, strong enough that an unconstrained parameter stays near its base value.
 PRIOR_START_WEIGHT = 0.02
-
-
-def _prior_weight(problem: _Problem, result) -> float:
-    """The prior's weight in the final fit under tolerances: the first fit's residual
-    variance times its correlation length, the scale in which the recordings' information
-    is counted (the covariance of :func:`_solve`)."""
-    dof = max(result.fun.size - result.jac.shape[1], 1)
-    variance = float(result.fun @ result.fun) / dof
-    return math.sqrt(variance * correlation_length(result.fun, problem.blocks))
 
 
 def _fit(
@@ -560,7 +554,7 @@ def _fit(
     from_tolerance: tuple[str, ...] = ()
     if tolerated:
         problem, result, cov, information = _solve(
-            recordings, params, free, result.x, spring, widths, _prior_weight(problem, result)
+            recordings, params, free, result.x, spring, widths, math.sqrt(problem.scale)
         )
         evaluations += problem.evaluations
         errors = np.sqrt(np.maximum(np.diag(cov)[: len(free)], 0.0))
