@@ -4,6 +4,7 @@ a loadable unit set with provenance, and refusals of recordings that cannot comm
 from __future__ import annotations
 
 import functools
+import math
 
 import pytest
 from typer.testing import CliRunner
@@ -332,3 +333,29 @@ def test_a_tolerance_commissioning_cannot_use_exits_2(tmp_path, tolerances, frag
     assert result.exit_code == 2
     assert fragment in result.output and str(path) in result.output
     assert "Traceback" not in result.output
+
+
+def test_posterior_variances_survive_a_wide_information_scale():
+    """The posterior's inverse under tolerances: the recordings' information spans 12
+    orders (calibration-pwm case 155: 3e12 for the back-EMF constant, 0 for static
+    friction) against the prior's 0.7. The inverse is the closed form of its 2 x 2 coupled
+    block and the diagonal's reciprocal (relative 1e-9: rounding), a column that changes
+    nothing and has no prior stays infinite; the unscaled inverse read every direction as
+    blind but the strongest (its floor is 1e-12 of the largest eigenvalue), which kept a
+    fitted spring out."""
+    import numpy as np
+
+    from emaprog.fitting.commission import _scaled_inverse
+    from emaprog.identification.confidence import information_inverse
+
+    a, b, c = 3.2e12 + 0.7, 0.7 + 4.0, 0.9 * math.sqrt(3.2e12 * 4.0)  # correlated 0.9
+    posterior = np.zeros((4, 4))
+    posterior[:2, :2] = [[a, c], [c, b]]
+    posterior[2, 2] = 0.7  # the prior alone (static friction never sticks)
+    cov = _scaled_inverse(posterior)
+    determinant = a * b - c * c
+    expected = np.array([[b, -c], [-c, a]]) / determinant
+    assert np.allclose(cov[:2, :2], expected, rtol=1e-9, atol=0.0)
+    assert cov[2, 2] == pytest.approx(1.0 / 0.7, rel=1e-12)
+    assert np.isinf(cov[3, 3])  # the fourth column: no information, no prior
+    assert np.isinf(np.diag(information_inverse(posterior))[1:3]).all()
