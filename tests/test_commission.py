@@ -6,6 +6,7 @@ from __future__ import annotations
 import functools
 import math
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -343,8 +344,6 @@ def test_posterior_variances_survive_a_wide_information_scale():
     nothing and has no prior stays infinite; the unscaled inverse read every direction as
     blind but the strongest (its floor is 1e-12 of the largest eigenvalue), which kept a
     fitted spring out."""
-    import numpy as np
-
     from emaprog.fitting.commission import _scaled_inverse
     from emaprog.identification.confidence import information_inverse
 
