@@ -41,6 +41,7 @@ from pydantic import (
     field_validator,
     model_validator,
 )
+from scipy.optimize import minimize_scalar
 from scipy.stats import median_abs_deviation, trim_mean
 
 from .. import __version__
@@ -400,8 +401,10 @@ def current_demand(
     return demand[np.clip(np.floor(time * rate + 1e-9).astype(np.int64), 0, grid.size - 1)]
 
 
-#: [A] step of the coarse search for :func:`integrator_charge` (then refined by scipy).
+#: [A] step of the coarse search for :func:`integrator_charge` (then refined by scipy), and
+#: the samples it reads at most (a long recording's, evenly thinned).
 CHARGE_STEP = 0.05
+CHARGE_SAMPLES = 20_000
 
 
 def integrator_charge(demand: np.ndarray, magnitude: np.ndarray, limit: float) -> float:
@@ -420,13 +423,13 @@ def integrator_charge(demand: np.ndarray, magnitude: np.ndarray, limit: float) -
     current energy signed wrongly 8.3e-4 -> 1.1e-5 of the signal (the noise floor of that
     recording's fitness: 7.7e-6).
     """
-    from scipy.optimize import minimize_scalar
 
-    def cost(c: float) -> float:
-        return float(np.sum((np.abs(demand + c) - magnitude) ** 2))
+    def cost(c: float, every: int = 1) -> float:
+        return float(np.sum((np.abs(demand[::every] + c) - magnitude[::every]) ** 2))
 
     grid = np.arange(-limit, limit + CHARGE_STEP / 2, CHARGE_STEP)
-    best = float(grid[int(np.argmin([cost(c) for c in grid]))])
+    every = max(1, demand.size // CHARGE_SAMPLES)  # the coarse search on a long recording
+    best = float(grid[int(np.argmin([cost(c, every) for c in grid]))])
     refined = minimize_scalar(
         cost,
         bounds=(max(best - CHARGE_STEP, -limit), min(best + CHARGE_STEP, limit)),
@@ -996,26 +999,29 @@ def read_recording(
                 out[k] = (out[k] - balance["offsets"][x]) / balance["gains"][x]
     if "current" in out:
         how, sign = "recorded", np.sign(out["current"])
-    elif "torque" in out:
-        how, sign = "phase currents, signed like the recorded torque", np.sign(out["torque"])
     else:
-        # the replayed controller's demand (module docstring). Signing by the commutation
-        # sector instead was measured: fewer wrong signs against the true torque (0.18 %
-        # of the samples against 0.42 %), but the healthy Monitor, whose own current
-        # follows the same demand, then fitted the example unit's pre-roll recordings
-        # worse (k_e x0.939 against x0.980, true 0.98)
-        demand = current_demand(out["time"], out["command"], out["position"], out["speed"], params)
-        charge = integrator_charge(
-            demand,
-            0.5 * (np.abs(out["current_a"]) + np.abs(out["current_b"]) + np.abs(out["current_c"])),
-            params.spec.electrical.current_limit,
+        magnitude = 0.5 * (
+            np.abs(out["current_a"]) + np.abs(out["current_b"]) + np.abs(out["current_c"])
         )
-        how = (
-            "phase currents, signed like the replayed controller's current demand (its "
-            f"integrator holding {charge:.3f} A at the first sample, fitted to the phase "
-            "currents' magnitude)"
-        )
-        sign = np.sign(demand + charge)
+        if "torque" in out:
+            how = "phase currents, signed like the recorded torque"
+            sign = np.sign(out["torque"])
+        else:
+            # the replayed controller's demand (module docstring). Signing by the commutation
+            # sector instead was measured: fewer wrong signs against the true torque (0.18 %
+            # of the samples against 0.42 %), but the healthy Monitor, whose own current
+            # follows the same demand, then fitted the example unit's pre-roll recordings
+            # worse (k_e x0.939 against x0.980, true 0.98)
+            demand = current_demand(
+                out["time"], out["command"], out["position"], out["speed"], params
+            )
+            charge = integrator_charge(demand, magnitude, params.spec.electrical.current_limit)
+            how = (
+                "phase currents, signed like the replayed controller's current demand (its "
+                f"integrator holding {charge:.3f} A at the first sample, fitted to the phase "
+                "currents' magnitude)"
+            )
+            sign = np.sign(demand + charge)
     identity = None
     if phases:
         identity = phase_identity(
@@ -1030,11 +1036,7 @@ def read_recording(
             identity, out, params
         )
     if "current" not in out:
-        out["current"] = (
-            0.5
-            * (np.abs(out["current_a"]) + np.abs(out["current_b"]) + np.abs(out["current_c"]))
-            * sign
-        )
+        out["current"] = magnitude * sign
     checked = check_columns({k: out[k] for k in COLUMNS if k in out}, path)
     meta = {
         "emaprog_version": __version__,
