@@ -146,6 +146,21 @@ def _filter2(state, u, wc, dt):
 
 
 @njit(cache=True)
+def _star_rates(a, inductance, di):
+    """The phase currents' rates of a star winding with all three phases conducting:
+    ``L_x di_x/dt + v_n = a_x`` (``a_x``: terminal voltage less the resistive drop and the
+    back-EMF) with ``sum di_x = 0`` fixes the neutral ``v_n``; written into ``di``."""
+    num = 0.0
+    den = 0.0
+    for x in range(3):
+        num += a[x] / inductance[x]
+        den += 1.0 / inductance[x]
+    vn = num / den
+    for x in range(3):
+        di[x] = (a[x] - vn) / inductance[x]
+
+
+@njit(cache=True)
 def _run(
     u_vals,  # unit scalars, see simulate
     table,
@@ -369,14 +384,7 @@ def _run(
         n_fixed = fixed[0] + fixed[1] + fixed[2]
         di = np.zeros(3)
         if n_fixed == 3:
-            num = 0.0
-            den = 0.0
-            for x in range(3):
-                num += a[x] / L[x]
-                den += 1.0 / L[x]
-            vn = num / den
-            for x in range(3):
-                di[x] = (a[x] - vn) / L[x]
+            _star_rates(a, L, di)
         elif n_fixed == 2:
             p = -1
             qx = -1
@@ -395,14 +403,7 @@ def _run(
             if v_open > vdc or v_open < 0.0:
                 v[o] = vdc if v_open > vdc else 0.0
                 a[o] = v[o] - e_shape[o] * wm
-                num = 0.0
-                den = 0.0
-                for x in range(3):
-                    num += a[x] / L[x]
-                    den += 1.0 / L[x]
-                vn = num / den
-                for x in range(3):
-                    di[x] = (a[x] - vn) / L[x]
+                _star_rates(a, L, di)
             else:
                 di[p] = dip
                 di[qx] = -dip
