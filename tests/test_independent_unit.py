@@ -64,8 +64,8 @@ def test_the_equivalent_current_of_a_unit_held_under_load_is_signed_like_its_tor
     clear = np.abs(current) > 0.2
     wrong = np.sign(current[clear]) != np.sign(torque[clear])
     assert wrong.mean() <= 0.002, wrong.mean()
-    how = trace.metadata["equivalent_current"]
-    charge = float(how.split("holding ")[1].split(" A")[0])
+    charge = trace.metadata["integrator_charge"]
+    assert f"{charge:.3f} A" in trace.metadata["equivalent_current"]
     holding = torque[0] / (2.0 * params.spec.electrical.back_emf_constant)
     assert abs(charge - holding) <= 0.1, (charge, holding)
 

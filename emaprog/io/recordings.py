@@ -20,7 +20,8 @@ recorded torque's sign when the map has ``torque``, else the sign of the
 current demand of the actuator's own controller replayed on the recorded
 command, position and speed (the hysteresis regulator makes the pair current,
 hence the torque, follow that demand's sign; a hinge moment does not fool it,
-unlike a sign taken from the acceleration).
+unlike a sign taken from the acceleration), its integrator starting with the current the
+unit already held (:func:`integrator_charge`).
 """
 
 from __future__ import annotations
@@ -997,6 +998,7 @@ def read_recording(
         if balance["applied"]:
             for k, x in zip(PHASE_COLUMNS, "abc"):
                 out[k] = (out[k] - balance["offsets"][x]) / balance["gains"][x]
+    charge = None
     if "current" in out:
         how, sign = "recorded", np.sign(out["current"])
     else:
@@ -1051,6 +1053,7 @@ def read_recording(
         "column_map_file": str(Path(map_file).resolve()) if map_file is not None else None,
         "time_offset": t0,
         "equivalent_current": how,
+        **({"integrator_charge": charge} if charge is not None else {}),
         "speed": speed,
         "command": command_note,
         **({"motor_angle": f"unwrapped: {turns} turn boundaries crossed"} if turns else {}),
