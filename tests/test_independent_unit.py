@@ -159,3 +159,39 @@ def test_a_rotor_off_its_sensors_zero_is_located(tmp_path):
     # mirrored sequence: one pair of channels swapped against the map's names
     swapped = [w for w, key in identity["windings"].items() if key != f"current_{w}"]
     assert len(swapped) == 2, identity
+
+
+def test_a_set_whose_controller_is_not_the_units_is_refused(tmp_path):
+    """The same unit with its position gain 20 % under the set's: the set's controller
+    replayed on the recording misses the phase currents by about twice their RMS (measured
+    2.05; against 0.05 with the set's gains) and would sign 40 % of the samples wrongly, so
+    the recording is refused before any fit, naming the set's controller (exit 2 from the
+    command line); the unit whose gains are the set's passes."""
+    from emaprog.errors import InputError
+    from emaprog.io.recordings import check_plausible
+
+    (tmp_path / "logger.yaml").write_text(iu.COLUMN_MAP)
+    params = parameters.load("default-pwm")
+    misfits = {}
+    for name, gain in (("matched", 10800.0), ("slower", 8640.0)):
+        rec = iu.simulate(
+            replace(iu.Unit(), position_gain=gain),
+            iu.Faults(),
+            iu.Test(hinge_moment=20.0, spring=1500.0, seed=1),
+        )
+        iu.write_csv(tmp_path / f"{name}.csv", rec)
+        trace = read_recording(
+            tmp_path / f"{name}.csv",
+            load_column_map(tmp_path / "logger.yaml"),
+            params,
+            tmp_path / "logger.yaml",
+        )
+        misfits[name] = trace.metadata["demand_misfit"]
+        if name == "matched":
+            check_plausible(trace, params, tmp_path / f"{name}.csv")
+        else:
+            with pytest.raises(InputError) as refused:
+                check_plausible(trace, params, tmp_path / f"{name}.csv")
+            assert refused.value.key == "controller"
+            assert "position_gain" in str(refused.value)
+    assert misfits["matched"] < 0.1 and misfits["slower"] > 1.5, misfits

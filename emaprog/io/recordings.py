@@ -48,7 +48,7 @@ from scipy.stats import median_abs_deviation, trim_mean
 from .. import __version__
 from ..config.parameters import Parameters
 from ..config.yamlfile import load_mapping
-from ..errors import InputError, from_validation_error
+from ..errors import InputError, from_validation_error, past_limit
 from ..signals import command_start, covering_grid, head_samples
 from .dialects import CsvOptions, read_text_table, unit_of
 from .storage import COLUMNS, Trace, check_columns
@@ -860,13 +860,29 @@ def speed_source_of(trace: Trace) -> str:
     return speed.get("source", "recorded") if isinstance(speed, dict) else "recorded"
 
 
+#: [-] RMS of ``|replayed demand + charge| - (|I_A| + |I_B| + |I_C|)/2`` over the RMS of the
+#: latter beyond which the set's controller is not the unit's: its demand cannot sign the
+#: equivalent current (:func:`check_plausible`). Measured on units of an independently
+#: written simulator (``benchmarks/independent_unit.py``): 0.047-0.055 on 24 recordings with
+#: the set's gains (0.053-0.057 on the example rig's), 0.36 with the speed loop's gains
+#: x0.7 (signs still right: 0.2 % wrong where the current clears its noise), 1.7-2.1 with
+#: the position gain x0.8 or x1.2 (36-47 % wrong).
+DEMAND_MISFIT_LIMIT = 1.0
+#: [-] ... checked where the current's RMS is at least this many times the set's
+#: current-line noise (a recording at rest has nothing to sign).
+DEMAND_CLEAR_OF_NOISE = 5.0
+
+
 def check_plausible(trace: Trace, params: Parameters, path) -> None:
     """Before fitting: the mapped channels agree with each other and with the parameter set.
 
     The position against the command it follows, the recorded motor speed against the
-    derivative of the motor angle (or of the surface position times the gear ratio), and the
-    current's peak against the drive's current limit; the channel most likely mis-mapped is
-    named with the evidence (exit 2). Only for rig recordings (read through a column map).
+    derivative of the motor angle (or of the surface position times the gear ratio), the
+    current's peak against the drive's current limit, and the controller's current demand
+    replayed on the recording (which signs an equivalent current built from the phases)
+    against the phase currents; the channel most likely mis-mapped, or the set's
+    ``controller``, is named with the evidence (exit 2). Only for rig recordings (read
+    through a column map).
     """
     meta = trace.metadata or {}
     if meta.get("model") != "recording" or not meta.get("column_map"):
@@ -919,6 +935,22 @@ def check_plausible(trace: Trace, params: Parameters, path) -> None:
             f"{current_limit:g} A limit: mA mapped as A? (column "
             f"'{mapped[keys[0]].column}')",
             f"{keys[0]}.unit",
+        )
+    misfit = meta.get("demand_misfit")
+    noise = params.spec.sensors.current_noise
+    clear = float(np.sqrt(np.mean(out["current"] ** 2))) >= DEMAND_CLEAR_OF_NOISE * noise
+    if misfit is not None and misfit > DEMAND_MISFIT_LIMIT and clear:
+        raise InputError(
+            path,
+            "the current demand of the parameter set's controller, replayed on the "
+            "recorded command, position and speed, misses the phase currents' magnitude by "
+            f"{past_limit(misfit, DEMAND_MISFIT_LIMIT, '.0%')} of its RMS (at most "
+            f"{DEMAND_MISFIT_LIMIT:.0%}), so it cannot sign the equivalent current: the "
+            "set's controller gains are not this unit's (position_gain, speed_gain, "
+            "speed_integral in the parameter set), or the command, position or speed "
+            "channel is wrong; give the unit's gains, or map its torque or equivalent "
+            "current",
+            "controller",
         )
 
 
@@ -998,7 +1030,7 @@ def read_recording(
         if balance["applied"]:
             for k, x in zip(PHASE_COLUMNS, "abc"):
                 out[k] = (out[k] - balance["offsets"][x]) / balance["gains"][x]
-    charge = None
+    charge = misfit = None
     if "current" in out:
         how, sign = "recorded", np.sign(out["current"])
     else:
@@ -1018,6 +1050,10 @@ def read_recording(
                 out["time"], out["command"], out["position"], out["speed"], params
             )
             charge = integrator_charge(demand, magnitude, params.spec.electrical.current_limit)
+            misfit = float(
+                np.sqrt(np.mean((np.abs(demand + charge) - magnitude) ** 2))
+                / max(float(np.sqrt(np.mean(magnitude**2))), 1e-300)
+            )
             how = (
                 "phase currents, signed like the replayed controller's current demand (its "
                 f"integrator holding {charge:.3f} A at the first sample, fitted to the phase "
@@ -1053,7 +1089,7 @@ def read_recording(
         "column_map_file": str(Path(map_file).resolve()) if map_file is not None else None,
         "time_offset": t0,
         "equivalent_current": how,
-        **({"integrator_charge": charge} if charge is not None else {}),
+        **({"integrator_charge": charge, "demand_misfit": misfit} if charge is not None else {}),
         "speed": speed,
         "command": command_note,
         **({"motor_angle": f"unwrapped: {turns} turn boundaries crossed"} if turns else {}),
