@@ -34,7 +34,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -113,7 +113,7 @@ class Test:
     spring: float = 0.0  # [N m/rad]
     rate: float = 10e3  # logger
     seed: int = 0
-    extra: dict = field(default_factory=dict)
+    pre_roll: float = 0.0  # [s] the logger runs this long at rest before the command starts
 
 
 def emf_shape(edge_deg: float, points: int = 3600) -> np.ndarray:
@@ -143,6 +143,14 @@ def _filter2(state, u, wc, dt):
     acc = wc * wc * (u - state[0]) - math.sqrt(2.0) * wc * state[1]
     state[1] += acc * dt
     state[0] += state[1] * dt
+
+
+@njit(cache=True)
+def _chirp(t, amp, f0, f1, duration):
+    """The test command at ``t`` from its start: a linear chirp, 0 before and after it."""
+    if t < 0.0 or t > duration:
+        return 0.0
+    return amp * math.sin(2.0 * math.pi * (f0 * t + 0.5 * (f1 - f0) / duration * t * t))
 
 
 @njit(cache=True)
@@ -181,6 +189,7 @@ def _run(
     log_dt,
     total_samples,
     settle,
+    pre_roll,
     noise,  # (samples, 5): position, ia, ib, ic, resolver jitter (unit normal)
 ):
     (
@@ -288,11 +297,7 @@ def _run(
             res_prev = res
             w_filt += alpha * (w_raw - w_filt)
             w_meas = w_filt
-            if t_rec >= 0.0 and t_rec <= duration:
-                ph = two_pi * (f0 * t_rec + 0.5 * (f1 - f0) / duration * t_rec * t_rec)
-                cmd = amp * math.sin(ph)
-            else:
-                cmd = 0.0
+            cmd = _chirp(t_rec - pre_roll, amp, f0, f1, duration)
             pos_meas = pos_f[0] + pos_off
             w_dem = kpos * (cmd - pos_meas)
             if w_dem > wlim:
@@ -464,9 +469,7 @@ def _run(
             j = (k - settle_steps) // steps_log
             if j < total_samples:
                 out[j, 0] = t_rec
-                if t_rec <= duration:
-                    ph = two_pi * (f0 * t_rec + 0.5 * (f1 - f0) / duration * t_rec * t_rec)
-                    out[j, 1] = amp * math.sin(ph)
+                out[j, 1] = _chirp(t_rec - pre_roll, amp, f0, f1, duration)
                 out[j, 2] = pos_f[0] + pos_off + pos_noise * noise[j, 0]
                 out[j, 3] = w_meas
                 for x in range(3):
@@ -517,7 +520,7 @@ def simulate(unit: Unit, faults: Faults, test: Test) -> dict[str, np.ndarray]:
         unit.current_noise,
         unit.position_offset,
     )
-    samples = int(round(test.duration * test.rate)) + 1
+    samples = int(round((test.pre_roll + test.duration) * test.rate)) + 1
     noise = np.random.default_rng(test.seed).standard_normal((samples, 5))
     out = _run(
         vals,
@@ -539,6 +542,7 @@ def simulate(unit: Unit, faults: Faults, test: Test) -> dict[str, np.ndarray]:
         1.0 / test.rate,
         samples,
         SETTLE,
+        test.pre_roll,
         noise,
     )
     names = (
