@@ -23,6 +23,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
+
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import independent_unit as iu  # noqa: E402
 from _output import finish, parser  # noqa: E402
@@ -66,8 +68,6 @@ def run(cmd: list[str], cwd: Path) -> subprocess.CompletedProcess:
 
 def unit_rows(folder: Path, seed: int) -> list[dict]:
     """Write unit ``seed``'s folder, run the rig commands, compare each report with the truth."""
-    import numpy as np
-
     unit = iu.spread_unit(np.random.default_rng(seed))
     healthy = [
         iu.Test(hinge_moment=20.0, spring=1500.0, seed=100 * seed + 1),
