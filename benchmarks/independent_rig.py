@@ -11,16 +11,25 @@ inconclusive) against the fault's true severity, the estimates against the accur
 tolerances of docs/reference.md (Faults), the named phase against the shorted winding's
 logger channel.
 
-Run: ``python benchmarks/independent_rig.py OUT_DIR [--units N] [--seed S] [--json]``
-(about 1.5 min a unit on 2 cores).
+``--set fig10-parts`` inspects instead the Fig. 10 set, the set without each of its four
+faults, and each fault alone at its Fig. 10 magnitude (nine inspections a unit): which
+fault, beside which others, the Monitor meets least on a unit of this form. ``--ideal
+cogging,hall`` makes those differences of form ideal (``independent_unit.IDEALS``: cogging,
+hall, stribeck, warming, emf-edges, dead-time, logger-gains), to measure what each costs.
+
+Run: ``python benchmarks/independent_rig.py OUT_DIR [--units N] [--seed S]
+[--set standard|fig10-parts] [--ideal NAMES] [--json]`` (about 1.5 min a unit on 2 cores;
+fig10-parts about 4 min).
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -44,6 +53,25 @@ INSPECTIONS = {
     "eccentricity.csv": iu.Faults(zeta=0.25, phi=1.0),
     "fig10.csv": iu.Faults(1.8, 4e-4, (0.2, 0.0, 0.0), 0.2, 0.0),
 }
+#: The Fig. 10 set taken apart: the set, the set without each fault, each fault alone.
+FIG10 = INSPECTIONS["fig10.csv"]
+_ABSENT = {
+    "friction": {"friction": 1.0},
+    "backlash": {"backlash": 0.0},
+    "short": {"short_circuit": (0.0, 0.0, 0.0)},
+    "eccentricity": {"zeta": 0.0, "phi": 0.0},
+}
+FIG10_PARTS = {
+    "fig10.csv": FIG10,
+    **{f"fig10-no-{f}.csv": replace(FIG10, **absent) for f, absent in _ABSENT.items()},
+    **{
+        f"{f}-alone.csv": replace(
+            FIG10, **{k: v for g, absent in _ABSENT.items() if g != f for k, v in absent.items()}
+        )
+        for f in _ABSENT
+    },
+}
+SETS = {"standard": INSPECTIONS, "fig10-parts": FIG10_PARTS}
 LOGGER_CHANNELS = ("I_U [A]", "I_V [A]", "I_W [A]")
 
 
@@ -66,16 +94,22 @@ def run(cmd: list[str], cwd: Path) -> subprocess.CompletedProcess:
     return subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, check=False)
 
 
-def unit_rows(folder: Path, seed: int) -> list[dict]:
-    """Write unit ``seed``'s folder, run the rig commands, compare each report with the truth."""
-    unit = iu.spread_unit(np.random.default_rng(seed))
+def unit_rows(
+    folder: Path,
+    seed: int,
+    inspected: dict[str, iu.Faults] = INSPECTIONS,
+    ideals: tuple[str, ...] = (),
+) -> list[dict]:
+    """Write unit ``seed``'s folder (its differences ``ideals`` made ideal), run the rig
+    commands, compare each report with the truth."""
+    unit = iu.ideal(iu.spread_unit(np.random.default_rng(seed)), ideals)
     healthy = [
         iu.Test(hinge_moment=20.0, spring=1500.0, seed=100 * seed + 1),
         iu.Test(hinge_moment=45.0, seed=100 * seed + 2),
     ]
     inspections = {
         name: (faults, iu.Test(hinge_moment=30.0, spring=2000.0, seed=100 * seed + 10 + j))
-        for j, (name, faults) in enumerate(INSPECTIONS.items())
+        for j, (name, faults) in enumerate(inspected.items())
     }
     iu.write_unit(folder, unit, healthy, inspections)
     commissioned = run(
@@ -198,16 +232,36 @@ def table(result: dict) -> str:
     return "\n".join(lines)
 
 
+def ideal_names(text: str) -> tuple[str, ...]:
+    """``--ideal``'s comma list, each a key of ``independent_unit.IDEALS``."""
+    names = tuple(n.strip() for n in text.split(",") if n.strip())
+    unknown = [n for n in names if n not in iu.IDEALS]
+    if unknown:
+        raise argparse.ArgumentTypeError(
+            f"unknown difference(s) {', '.join(unknown)}; allowed: {', '.join(iu.IDEALS)}"
+        )
+    return names
+
+
 def main() -> int:
     args = parser(__doc__)
     args.add_argument("out", type=Path)
     args.add_argument("--units", type=int, default=4)
     args.add_argument("--seed", type=int, default=1)
+    args.add_argument("--set", choices=sorted(SETS), default="standard", dest="inspections")
+    args.add_argument("--ideal", type=ideal_names, default=(), help="e.g. cogging,hall")
     a = args.parse_args()
     rows: list[dict] = []
     for seed in range(a.seed, a.seed + a.units):
-        rows += unit_rows(a.out / f"unit-{seed}", seed)
-    result = {"units": a.units, "seed": a.seed, "summary": summarise(rows), "rows": rows}
+        rows += unit_rows(a.out / f"unit-{seed}", seed, SETS[a.inspections], a.ideal)
+    result = {
+        "units": a.units,
+        "seed": a.seed,
+        "set": a.inspections,
+        "ideal": list(a.ideal),
+        "summary": summarise(rows),
+        "rows": rows,
+    }
     return finish(result, table, a.json)
 
 

@@ -34,6 +34,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
@@ -614,6 +615,27 @@ def spread_unit(rng: np.random.Generator) -> Unit:
         gains=tuple(float(g) for g in 1.0 + rng.uniform(-0.01, 0.01, 3)),
         offsets=tuple(float(o) for o in rng.uniform(-0.01, 0.01, 3)),
     )
+
+
+#: The unit's differences of form from emaprog's Reference that can be made ideal one at a
+#: time (``independent_rig.py --ideal``), each the unit's fields it sets.
+IDEALS: dict[str, Callable[[Unit], dict]] = {
+    "cogging": lambda u: {"cogging": 0.0},
+    "hall": lambda u: {"hall_error_deg": 0.0},
+    # static = dynamic friction: no Stribeck dip (a hair above: the curve divides by the gap)
+    "stribeck": lambda u: {"static_friction": u.dynamic_friction * 1.0001},
+    "warming": lambda u: {"warming": 0.0},
+    "emf-edges": lambda u: {"emf_edge_deg": 0.5},
+    "dead-time": lambda u: {"dead_time": 0.0},
+    "logger-gains": lambda u: {"gains": (1.0, 1.0, 1.0), "offsets": (0.0, 0.0, 0.0)},
+}
+
+
+def ideal(unit: Unit, names: list[str]) -> Unit:
+    """``unit`` with the differences of form ``names`` (keys of :data:`IDEALS`) made ideal."""
+    for name in names:
+        unit = replace(unit, **IDEALS[name](unit))
+    return unit
 
 
 def write_unit(

@@ -195,3 +195,35 @@ def test_a_set_whose_controller_is_not_the_units_is_refused(tmp_path):
             assert refused.value.key == "controller"
             assert "position_gain" in str(refused.value)
     assert misfits["matched"] < 0.1 and misfits["slower"] > 1.5, misfits
+
+
+def test_making_a_difference_ideal_changes_that_difference_only():
+    """``independent_rig.py --ideal`` measures what one difference of form costs: each ideal
+    sets its own fields and leaves every other field of the unit as drawn."""
+    unit = iu.spread_unit(np.random.default_rng(3))
+    fields = set(iu.asdict(unit))
+    for name, change in iu.IDEALS.items():
+        made = iu.ideal(unit, [name])
+        differ = {f for f in fields if getattr(made, f) != getattr(unit, f)}
+        assert differ == set(change(unit)), (name, differ)
+    assert iu.ideal(unit, []) == unit
+    both = iu.ideal(unit, ["cogging", "hall"])
+    assert (both.cogging, both.hall_error_deg) == (0.0, 0.0)
+
+
+def test_the_fig10_parts_take_each_fault_out_once_and_alone_once():
+    """``--set fig10-parts``: the set, the set less each of its four faults, and each fault
+    alone at its Fig. 10 magnitude (severities compared as the benchmark's verdicts read
+    them)."""
+    import independent_rig as ir
+
+    full = ir.severities(ir.FIG10)
+    assert all(v > 0 for v in full.values())
+    parts = {name: ir.severities(f) for name, f in ir.FIG10_PARTS.items()}
+    assert parts["fig10.csv"] == full
+    for fault in full:
+        key = "short" if fault == "short_circuit" else fault
+        assert parts[f"fig10-no-{key}.csv"] == {**full, fault: 0.0}
+        alone = {f: (v if f == fault else 0.0) for f, v in full.items()}
+        assert parts[f"{key}-alone.csv"] == alone
+    assert len(parts) == 9
