@@ -34,7 +34,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
@@ -631,7 +631,7 @@ IDEALS: dict[str, Callable[[Unit], dict]] = {
 }
 
 
-def ideal(unit: Unit, names: list[str]) -> Unit:
+def ideal(unit: Unit, names: Iterable[str]) -> Unit:
     """``unit`` with the differences of form ``names`` (keys of :data:`IDEALS`) made ideal."""
     for name in names:
         unit = replace(unit, **IDEALS[name](unit))
