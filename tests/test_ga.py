@@ -255,3 +255,58 @@ def test_several_runs_keep_the_lowest_fit_of_the_runs_made_alone(params):
     assert together.fitness == fits[best]
     assert together.ga_seed == run_seed(seed, best)
     assert together.estimate == alone[best].estimate
+
+
+def test_the_cleared_start_sets_only_the_magnitudes_under_their_incipient_threshold_healthy(
+    params,
+):
+    """The start of the last polish (identification/run.py ``cleared_start``): each fault
+    magnitude away from healthy by less than its fault's incipient threshold (friction 0.15,
+    play 1e-4 rad, a phase's shorted fraction 0.05, zeta 0.08: the shipped set's) is set to
+    healthy; magnitudes at or past it and the eccentricity's angle are kept as they are, and
+    an estimate with nothing under a threshold gives no start (no polish is spent)."""
+    from emaprog.config.scenario import load_scenario
+    from emaprog.faults import flatten
+    from emaprog.identification.objective import Objective
+    from emaprog.identification.run import cleared_start
+    from emaprog.models import reference
+    from emaprog.models.common import inputs
+
+    from .conftest import CONFIGS
+
+    scenario = load_scenario(CONFIGS / "fig10-multiple-faults.yaml")
+    objective = Objective(
+        reference.simulate(scenario, params),
+        inputs(scenario, params),
+        params,
+        scenario.identify,
+    )
+    health = {"friction": 0.15, "backlash": 1e-4, "short_circuit": 0.05, "eccentricity": 0.08}
+    estimate = {
+        **flatten(scenario.faults),
+        "friction": 0.9,  # 0.10 from healthy: under 0.15
+        "backlash": 2.0e-4,  # past 1e-4: kept
+        "short_circuit_a": 0.20,
+        "short_circuit_b": 0.02,
+        "short_circuit_c": 0.049,
+        "eccentricity_zeta": 0.05,
+        "eccentricity_phase": 1.0,
+    }
+    start = cleared_start(objective, objective.genes_for(estimate), health)
+    assert start is not None
+    found = objective.values(start)
+    expected = {
+        "friction": 1.0,
+        "backlash": 2.0e-4,
+        "short_circuit_a": 0.20,
+        "short_circuit_b": 0.0,
+        "short_circuit_c": 0.0,
+        "eccentricity_zeta": 0.0,
+        "eccentricity_phase": 1.0,
+    }
+    for name, value in expected.items():
+        # genes_for/values round-trip in float64 over spans of order 1: 1e-9 of slack
+        assert found[name] == pytest.approx(value, abs=1e-9), name
+    shown = {**estimate, "friction": 1.5, "short_circuit_b": 0.0, "short_circuit_c": 0.06}
+    shown["eccentricity_zeta"] = 0.0
+    assert cleared_start(objective, objective.genes_for(shown), health) is None

@@ -169,6 +169,7 @@ def run_case(spec: CaseSpec) -> dict:
             "evaluations": int(result.evaluations),
             "generations": int(result.generations),
             "runs": int(result.runs),
+            "cleared": bool(result.cleared),
             "simulate_s": simulated - start,
             "identify_s": result.elapsed_s,
             "true_hinge_moment": float(spec.hinge_moment),

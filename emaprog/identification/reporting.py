@@ -107,6 +107,7 @@ def report_data(
             "stopped_by": result.stopped_by,
             "refined": result.refined,
             "runs": result.runs,
+            "cleared": result.cleared,
             "seed": result.ga_seed,
             "logbook": result.logbook,
         },
