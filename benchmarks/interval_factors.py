@@ -54,7 +54,7 @@ import pandas as pd
 from _output import finish, parser  # the sibling module benchmarks/_output.py
 
 from emaprog.config import parameters
-from emaprog.faults import CATALOGUE, NUISANCES, QUANTITIES, fault_load
+from emaprog.faults import CATALOGUE, NUISANCES, QUANTITIES, fault_load, incipient_thresholds
 from emaprog.identification.confidence import (
     BASES,
     EXPLAINED_LIMIT_BASES,
@@ -212,8 +212,7 @@ def load(directory: Path) -> pd.DataFrame:
 
 
 def calibrate(directories: list[Path]) -> list[dict]:
-    health = parameters.load("default").spec.health
-    incipient = {f.name: getattr(health, f.name).incipient for f in CATALOGUE}
+    incipient = incipient_thresholds(parameters.load("default").spec.health)
     frames = {str(d): load(d) for d in directories}
     rows = []
     for basis in BASES:

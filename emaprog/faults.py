@@ -515,6 +515,11 @@ def severity(fault: str, values: dict[str, float]) -> float:
     return max(abs(values[q.name] - q.healthy) for q in FAULTS[fault].magnitudes)
 
 
+def incipient_thresholds(health) -> dict[str, float]:
+    """Each catalogue fault's incipient severity in a parameter set's ``health:`` section."""
+    return {f.name: getattr(health, f.name).incipient for f in CATALOGUE}
+
+
 def fault_load(values, incipient: dict[str, float]):
     """How much fault a recording carries: the sum over the faults of their severity
     (:func:`severity`) over their incipient threshold ``incipient[fault]`` [-]. 0 on a

@@ -68,6 +68,7 @@ from ..faults import (
     QUANTITIES,
     ModelError,
     fault_load,
+    incipient_thresholds,
     severity,
     worst_phase,
 )
@@ -530,7 +531,7 @@ def assess(
     }
     linear.update(_polar_errors(coords, cov, values))
     interval, standard_error = {}, {}
-    load = fault_load(values, {f.name: getattr(health_limits, f.name).incipient for f in CATALOGUE})
+    load = fault_load(values, incipient_thresholds(health_limits))
     widening = mismatch_widening(floor.ratio, basis)
     # the echo's error less what its own noise explains: sign(e) sqrt(e^2 - sigma^2), with
     # sigma the linearised (noise) standard error; on twins with five times the noise the

@@ -14,7 +14,7 @@ from .. import progress
 from ..config.parameters import Parameters
 from ..config.scenario import IdentifySettings
 from ..errors import InputError
-from ..faults import CATALOGUE, FAULTS, PHASE_FAULTS
+from ..faults import CATALOGUE, FAULTS, PHASE_FAULTS, incipient_thresholds
 from ..io.storage import Trace
 from ..models.common import Inputs
 from ..numerics import DEFAULT, Numerics, serial_blas
@@ -297,8 +297,9 @@ def cleared_start(
 
     Every fault magnitude whose own deviation from healthy stays under its fault's
     incipient threshold (``incipient``, fault name -> severity) is set to healthy, the
-    other quantities kept; None when no such magnitude is away from healthy. A magnitude
-    cannot go below healthy, so on a unit of another form than the Monitor's the search
+    other quantities kept; None when no such magnitude is away from healthy. A shorted
+    fraction, a zeta or a play cannot go below healthy, so on a unit of another form than
+    the Monitor's the search
     gives the model's mismatch small spurious faults (shorted fractions of 0.5-3 %, zeta of
     1-4 %) that trade against the faults present: on robustness-pwm's healthy units they
     read the friction 3 % low (median) and up to 10 %. The polish alone does not leave
@@ -410,15 +411,14 @@ def identify_trace(
     assert chosen is not None  # most >= 1
     result, best, best_fitness, refined, chosen_seed = chosen
     cleared = False
-    start_genes = None
     if settings.refine and not params.hysteresis_form:
-        incipient = {f.name: getattr(params.spec.health, f.name).incipient for f in CATALOGUE}
-        start_genes = cleared_start(objective, best, incipient)
-    if start_genes is not None:
-        start_fitness = float(objective(start_genes[None])[0])
-        genes, value, _ = polish(objective, start_genes, start_fitness, settings.polish)
-        if value < best_fitness:
-            best, best_fitness, refined, cleared = genes, value, True, True
+        origin = cleared_start(objective, best, incipient_thresholds(params.spec.health))
+        if origin is not None:
+            genes, value, _ = polish(
+                objective, origin, float(objective(origin[None])[0]), settings.polish
+            )
+            if value < best_fitness:
+                best, best_fitness, refined, cleared = genes, value, True, True
     estimate = objective.values(best)
     if commissioned is None:
         commissioned = params.spec.commissioning is not None
