@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from emaprog.config.scenario import IdentifySettings
+from emaprog.config.scenario import IdentifySettings, Signals
 from emaprog.faults import HEALTHY, monitor_form, values_of
 from emaprog.fitting.calibration import SIGNATURE_FAULTS
 from emaprog.identification.objective import Objective
@@ -151,6 +151,31 @@ def test_batch_evaluator_equals_single_runs(params):
     singles = np.array([objective(g[None])[0] for g in genes])
     assert np.allclose(batch, singles, rtol=0, atol=1e-15)
     assert objective.evaluations == 18
+
+
+def test_the_position_error_does_not_see_the_logged_positions_offset(params):
+    """With the position in the error, a constant added to the recorded position (a logger
+    sensor's zero) leaves every candidate's fitness as it was, while a 1 % change of its scale
+    does not; the residual vector's squared sum is still the fitness.
+
+    Tolerances: 1e-9 relative for the offset (only the rounding of a mean taken out differs);
+    the scale change must move the fitness by more than 1 % (a 1 % error on a 0.05 rad chirp
+    is 0.5 mrad, far above the position noise the error sees)."""
+    sc = scenario("fig10-multiple-faults")
+    ref, _ = reference_run("fig10-multiple-faults")
+    settings = IdentifySettings(signals=Signals(current=1.0, position=1000.0, speed=0.0))
+
+    def objective(position):
+        trace = Trace({**ref, "position": position})
+        return Objective(trace, inputs(sc, params), params, settings)
+
+    base = objective(ref["position"])
+    genes = np.random.default_rng(1).random((5, base.dims))
+    fitness = base(genes)
+    assert np.allclose(objective(ref["position"] + 2e-4)(genes), fitness, rtol=1e-9, atol=0)
+    assert np.all(np.abs(objective(1.01 * ref["position"])(genes) / fitness - 1) > 0.01)
+    residuals = base.residuals(genes)
+    assert np.allclose((residuals**2).sum(axis=1), fitness, rtol=1e-9, atol=0)
 
 
 @pytest.mark.parametrize(

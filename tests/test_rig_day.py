@@ -701,7 +701,10 @@ def test_a_unit_commissioned_under_an_aerodynamic_spring_is_fitted_with_it(tmp_p
     fitted 2017, 2016 N m/rad): k_e within 2 % of the truth (x0.990 for 0.98), the surface
     inertia within 3 % (x0.965 for 0.95), and the unit file records the springs. Holding the spring at 0
     (``--nuisances hinge_moment``) a spring reads as a negative inertia: the same recordings
-    are accepted with k_e x0.869 and the surface inertia x0.724, which is why it is fitted."""
+    are accepted with the surface inertia x0.72 (x0.724 and x0.723 on two CPUs; asserted
+    under x0.85), which is why it is fitted. Where else the held fit puts the mismatch moves
+    with the last digits of the arithmetic (k_e x0.869 on one CPU, x0.964 on another), so it
+    is not asserted."""
     gen = generator()
     truth = gen.unit_parameters().spec
     files = []
@@ -731,7 +734,7 @@ def test_a_unit_commissioned_under_an_aerodynamic_spring_is_fitted_with_it(tmp_p
         assert abs(entry["hinge_stiffness"] / 2000.0 - 1) < 0.03
         assert entry["hinge_stiffness_standard_error"] > 0
     held = fitted["held"]
-    assert held["electrical"]["back_emf_constant"] / truth.electrical.back_emf_constant < 0.93
+    assert held["mechanical"]["surface_inertia"] / truth.mechanical.surface_inertia < 0.85
     assert "hinge_stiffness" not in held["commissioning"]["recordings"][0]
 
 

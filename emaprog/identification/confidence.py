@@ -212,6 +212,8 @@ def noise_floor(
         if target.weights[s] == 0.0:
             continue
         measured = (target.current, target.position, target.speed)[s]
+        if name == "position":  # the error's position is about its mean (kernels.monitor)
+            measured = measured - float(weight @ measured) / max(total, 1e-30)
         norm = max(float(weight @ measured**2), 1e-30)
         floor += target.weights[s] * total * sigma[name] ** 2 / objective.measured_width / norm
     floor = max(floor, 1e-30)

@@ -491,14 +491,33 @@ def unit_plant(plant, row):
 
 
 @njit(cache=True)
+def _mean_difference(model, measured, sample_weight):
+    """The weighted mean of ``model - measured``: the position error is formed about it, so
+    that an offset of the logged position sensor (its zero, which a logger's sensor need not
+    share with the drive's, nor keep from one recording to the next) is not read as a fault
+    (docs/reference.md, Scenario YAML, ``signals``)."""
+    acc = 0.0
+    total = 0.0
+    for k in range(model.size):
+        acc += sample_weight[k] * (model[k] - measured[k])
+        total += sample_weight[k]
+    return acc / total if total > 0.0 else 0.0
+
+
+@njit(cache=True)
 def _target_norms(target):
-    """Weighted squared norm of each measured signal (current, position, speed)."""
+    """Weighted squared norm of each measured signal (current, position, speed); the
+    position's about its weighted mean, as its error is formed (:func:`_mean_difference`)."""
     norms = np.zeros(3)
     signals = (target.current, target.position, target.speed)
     for s in range(3):
+        signal = signals[s]
+        mean = 0.0
+        if s == 1:
+            mean = -_mean_difference(np.zeros(signal.size), signal, target.sample_weight)
         acc = 0.0
-        for k in range(signals[s].size):
-            acc += target.sample_weight[k] * signals[s][k] ** 2
+        for k in range(signal.size):
+            acc += target.sample_weight[k] * (signal[k] - mean) ** 2
         norms[s] = max(acc, 1e-30)
     return norms
 
@@ -521,8 +540,10 @@ def evaluate_population(faults, units, drive, plant, options, target, fitness):
     target : ErrorTarget
         Measured signals already low-passed with ``target.filter_width``.
     fitness : (m,) float64, output
-        ``sum_s w_s ||lp(MM_s) - target_s||^2 / ||target_s||^2``, both norms
-        weighted sample by sample with ``target.sample_weight``.
+        ``sum_s w_s ||lp(MM_s) - target_s - o_s||^2 / ||target_s - m_s||^2``, both norms
+        weighted sample by sample with ``target.sample_weight``; ``o_s`` and ``m_s`` are 0
+        but for the position, where they are the weighted means of ``lp(MM_s) - target_s``
+        and of ``target_s``.
     """
     _evaluate(faults, units, drive, plant, options, target, fitness, np.empty((0, 3, 0)))
 
@@ -603,7 +624,8 @@ def evaluate_residuals(faults, units, drive, plant, options, target, residuals):
     """The weighted residual of every candidate in one call (parallel over candidates).
 
     ``residuals`` : (m, 3, n_rec) float64, output:
-    ``sqrt(w_s sample_weight_k / ||target_s||^2) (lp(MM_s)_k - target_s,k)``; its squared
+    ``sqrt(w_s sample_weight_k / ||target_s||^2) (lp(MM_s)_k - target_s,k - o_s)`` (``o_s``
+    as in :func:`evaluate_population`); its squared
     sum over (s, k) is the candidate's fitness of :func:`evaluate_population` (a
     zero-weight signal's rows are 0). For least-squares polishing and Jacobians.
     """
@@ -671,15 +693,16 @@ def _batch_parallel(
                 continue
             _filtered_at_instants(signals[s], target, filtered, model)
             measured = targets[s]
+            offset = _mean_difference(model, measured, target.sample_weight) if s == 1 else 0.0
             if with_residuals:
                 scale = target.weights[s] / norms[s]
                 for k in range(measured.size):
                     residuals[j, s, k] = math.sqrt(scale * target.sample_weight[k]) * (
-                        model[k] - measured[k]
+                        model[k] - measured[k] - offset
                     )
             else:
                 acc = 0.0
                 for k in range(measured.size):
-                    acc += target.sample_weight[k] * (model[k] - measured[k]) ** 2
+                    acc += target.sample_weight[k] * (model[k] - measured[k] - offset) ** 2
                 total += target.weights[s] * acc / norms[s]
         fitness[j] = total
