@@ -490,34 +490,43 @@ def unit_plant(plant, row):
     return Plant(electrical, mechanical, plant.controller, plant.sensors)
 
 
+#: The signal whose error is formed about its mean (current, position, speed): the logged
+#: position, whose sensor's zero a logger need not share with the drive, nor keep from one
+#: recording to the next; an offset of it is not a fault (docs/reference.md, Scenario YAML,
+#: ``signals``).
+CENTRED_SIGNAL = 1
+
+
 @njit(cache=True)
-def _mean_difference(model, measured, sample_weight):
-    """The weighted mean of ``model - measured``: the position error is formed about it, so
-    that an offset of the logged position sensor (its zero, which a logger's sensor need not
-    share with the drive's, nor keep from one recording to the next) is not read as a fault
-    (docs/reference.md, Scenario YAML, ``signals``)."""
+def _weighted_mean(x, weight):
+    """``sum(weight x) / sum(weight)`` (0 without weight)."""
     acc = 0.0
     total = 0.0
-    for k in range(model.size):
-        acc += sample_weight[k] * (model[k] - measured[k])
-        total += sample_weight[k]
+    for k in range(x.size):
+        acc += weight[k] * x[k]
+        total += weight[k]
     return acc / total if total > 0.0 else 0.0
 
 
 @njit(cache=True)
-def _target_norms(target):
-    """Weighted squared norm of each measured signal (current, position, speed); the
-    position's about its weighted mean, as its error is formed (:func:`_mean_difference`)."""
+def _target_centres(target):
+    """The value each measured signal's error is formed about: the position's weighted mean
+    (:data:`CENTRED_SIGNAL`), 0 for the others."""
+    centres = np.zeros(3)
+    centres[CENTRED_SIGNAL] = _weighted_mean(target.position, target.sample_weight)
+    return centres
+
+
+@njit(cache=True)
+def _target_norms(target, centres):
+    """Weighted squared norm of each measured signal (current, position, speed) about its
+    centre (:func:`_target_centres`)."""
     norms = np.zeros(3)
     signals = (target.current, target.position, target.speed)
     for s in range(3):
-        signal = signals[s]
-        mean = 0.0
-        if s == 1:
-            mean = -_mean_difference(np.zeros(signal.size), signal, target.sample_weight)
         acc = 0.0
-        for k in range(signal.size):
-            acc += target.sample_weight[k] * (signal[k] - mean) ** 2
+        for k in range(signals[s].size):
+            acc += target.sample_weight[k] * (signals[s][k] - centres[s]) ** 2
         norms[s] = max(acc, 1e-30)
     return norms
 
@@ -635,6 +644,7 @@ def evaluate_residuals(faults, units, drive, plant, options, target, residuals):
 @njit(cache=True)
 def _evaluate(faults, units, drive, plant, options, target, fitness, residuals):
     """:func:`_batch_parallel` with the plant in parts (numba's parallel loop takes flat tuples)."""
+    centres = _target_centres(target)
     _batch_parallel(
         faults,
         units,
@@ -645,7 +655,8 @@ def _evaluate(faults, units, drive, plant, options, target, fitness, residuals):
         plant.sensors,
         options,
         target,
-        _target_norms(target),
+        centres,
+        _target_norms(target, centres),
         fitness,
         residuals,
     )
@@ -662,6 +673,7 @@ def _batch_parallel(
     sensors,
     options,
     target,
+    centres,
     norms,
     fitness,
     residuals,
@@ -693,7 +705,9 @@ def _batch_parallel(
                 continue
             _filtered_at_instants(signals[s], target, filtered, model)
             measured = targets[s]
-            offset = _mean_difference(model, measured, target.sample_weight) if s == 1 else 0.0
+            offset = 0.0  # o_s of evaluate_population
+            if s == CENTRED_SIGNAL:
+                offset = _weighted_mean(model, target.sample_weight) - centres[s]
             if with_residuals:
                 scale = target.weights[s] / norms[s]
                 for k in range(measured.size):
