@@ -644,7 +644,6 @@ def evaluate_residuals(faults, units, drive, plant, options, target, residuals):
 @njit(cache=True)
 def _evaluate(faults, units, drive, plant, options, target, fitness, residuals):
     """:func:`_batch_parallel` with the plant in parts (numba's parallel loop takes flat tuples)."""
-    centres = _target_centres(target)
     _batch_parallel(
         faults,
         units,
@@ -655,8 +654,6 @@ def _evaluate(faults, units, drive, plant, options, target, fitness, residuals):
         plant.sensors,
         options,
         target,
-        centres,
-        _target_norms(target, centres),
         fitness,
         residuals,
     )
@@ -673,8 +670,6 @@ def _batch_parallel(
     sensors,
     options,
     target,
-    centres,
-    norms,
     fitness,
     residuals,
 ):
@@ -682,6 +677,8 @@ def _batch_parallel(
     signals filtered and read at the recorded instants, then either its fitness (into
     ``fitness``) or, when ``residuals`` has rows, its weighted residual vector. numba's
     parallel loop takes flat tuples only: the plant comes in parts."""
+    centres = _target_centres(target)  # once per batch, before the candidates
+    norms = _target_norms(target, centres)
     shared = units.shape[0] == 1
     with_residuals = residuals.shape[0] > 0
     n = drive.command.size
