@@ -27,7 +27,7 @@ from ..config.scenario import ChirpCommand, NoLoad
 from ..faults import HEALTHY, ZETA_COLUMN, MonitorFaults, monitor_form, values_of
 from ..identification.objective import STARTUP_SECONDS, filter_width, low_pass
 from ..models import monitor, reference
-from ..models.bldc import ErrorTarget, MonitorOptions
+from ..models.bldc import MonitorOptions
 from ..models.common import Inputs
 from ..models.family import family_of
 from ..numerics import DEFAULT
@@ -67,7 +67,7 @@ class Fit:
         sample_weight = np.ones_like(current)
         sample_weight[: round(STARTUP_SECONDS * rate)] = 0.0
         zeros = np.zeros_like(current)
-        self.target = ErrorTarget(
+        self.target = family_of(params).error_target(
             current,
             zeros,
             zeros,

@@ -204,17 +204,14 @@ def noise_floor(
         "speed": sensors.speed_lsb,
     }
     target = objective.target
-    weight = target.sample_weight
-    total = float(weight.sum())
+    total = float(target.sample_weight.sum())
     sigma, floor = {}, 0.0
     for s, name in enumerate(SIGNALS):
         sigma[name] = noise_sigma(trace[name], lsb[name])
         if target.weights[s] == 0.0:
             continue
-        measured = (target.current, target.position, target.speed)[s]
-        if name == "position":  # the error's position is about its mean (kernels.monitor)
-            measured = measured - float(weight @ measured) / max(total, 1e-30)
-        norm = max(float(weight @ measured**2), 1e-30)
+        # the fitness's own denominator: the signal's norm about its centre (the target's)
+        norm = float(target.norms[s])
         floor += target.weights[s] * total * sigma[name] ** 2 / objective.measured_width / norm
     floor = max(floor, 1e-30)
     ratio = fitness / floor

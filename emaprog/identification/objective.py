@@ -51,7 +51,6 @@ from ..models.bldc import (
     U_HINGE_MOMENT,
     U_HINGE_STIFFNESS,
     U_PHASE_RESISTANCE,
-    ErrorTarget,
     Plant,
     moving_average,
 )
@@ -213,7 +212,7 @@ class Objective:
             min(round(STARTUP_SECONDS * recording_rate), n // 10),
         )
         w = settings.signals
-        self.target = ErrorTarget(
+        self.target = self.family.error_target(
             current,
             position,
             speed,

@@ -54,6 +54,7 @@ from .structs import (
     ChainState,
     Drive,
     ElectricalParams,
+    ErrorTarget,
     MechanicalParams,
     MonitorFaults,
     MonitorOutputs,
@@ -509,26 +510,42 @@ def _weighted_mean(x, weight):
 
 
 @njit(cache=True)
-def _target_centres(target):
-    """The value each measured signal's error is formed about: the position's weighted mean
-    (:data:`CENTRED_SIGNAL`), 0 for the others."""
-    centres = np.zeros(3)
-    centres[CENTRED_SIGNAL] = _weighted_mean(target.position, target.sample_weight)
-    return centres
-
-
-@njit(cache=True)
-def _target_norms(target, centres):
+def _signal_norms(current, position, speed, sample_weight, centres):
     """Weighted squared norm of each measured signal (current, position, speed) about its
-    centre (:func:`_target_centres`)."""
+    centre."""
     norms = np.zeros(3)
-    signals = (target.current, target.position, target.speed)
+    signals = (current, position, speed)
     for s in range(3):
         acc = 0.0
         for k in range(signals[s].size):
-            acc += target.sample_weight[k] * (signals[s][k] - centres[s]) ** 2
+            acc += sample_weight[k] * (signals[s][k] - centres[s]) ** 2
         norms[s] = max(acc, 1e-30)
     return norms
+
+
+def error_target(
+    current, position, speed, weights, filter_width, sample_weight, sample_index, sample_fraction
+):
+    """The :class:`~emaprog.kernels.structs.ErrorTarget` of measured signals, with the value
+    each signal's error is formed about (the position's weighted mean,
+    :data:`CENTRED_SIGNAL`; 0 for the others) and each signal's weighted squared norm about
+    it: the fitness's denominators, computed once per recording for every batch and for the
+    noise floor."""
+    centres = np.zeros(3)
+    centres[CENTRED_SIGNAL] = _weighted_mean(position, sample_weight)
+    norms = _signal_norms(current, position, speed, sample_weight, centres)
+    return ErrorTarget(
+        current,
+        position,
+        speed,
+        weights,
+        filter_width,
+        sample_weight,
+        sample_index,
+        sample_fraction,
+        centres,
+        norms,
+    )
 
 
 @njit(cache=True)
@@ -677,8 +694,7 @@ def _batch_parallel(
     signals filtered and read at the recorded instants, then either its fitness (into
     ``fitness``) or, when ``residuals`` has rows, its weighted residual vector. numba's
     parallel loop takes flat tuples only: the plant comes in parts."""
-    centres = _target_centres(target)  # once per batch, before the candidates
-    norms = _target_norms(target, centres)
+    centres, norms = target.centres, target.norms
     shared = units.shape[0] == 1
     with_residuals = residuals.shape[0] > 0
     n = drive.command.size

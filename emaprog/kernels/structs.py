@@ -229,7 +229,8 @@ class ErrorTarget(NamedTuple):
     The measured signals are at the recording's own instants (n_rec of them, any
     rate); the Monitor runs on the controller grid, is low-passed there with
     ``filter_width`` and read at each recorded instant
-    ``(sample_index + sample_fraction) / rate`` by linear interpolation.
+    ``(sample_index + sample_fraction) / rate`` by linear interpolation. ``centres`` and
+    ``norms`` follow from the signals: build it with ``kernels.monitor.error_target``.
     """
 
     current: np.ndarray  # (n_rec,) [A] measured, low-passed over the same 1 ms
@@ -240,6 +241,8 @@ class ErrorTarget(NamedTuple):
     sample_weight: np.ndarray  # (n_rec,) [-] weight of each sample (0 leaves it out)
     sample_index: np.ndarray  # (n_rec,) int64, controller-grid sample at or before each instant
     sample_fraction: np.ndarray  # (n_rec,) [-] in [0, 1): the way to the next grid sample
+    centres: np.ndarray  # (3,) the value each measured signal's error is formed about
+    norms: np.ndarray  # (3,) [-] weighted squared norm of each measured signal about it
 
 
 # ---------------------------------------------------------------- outputs

@@ -45,6 +45,21 @@ class MotorFamily(Protocol):
         """The plant with a unit row's values."""
         ...
 
+    def error_target(
+        self,
+        current: np.ndarray,
+        position: np.ndarray,
+        speed: np.ndarray,
+        weights: np.ndarray,
+        filter_width: int,
+        sample_weight: np.ndarray,
+        sample_index: np.ndarray,
+        sample_fraction: np.ndarray,
+    ) -> Any:
+        """What a batch of Monitor runs is compared with: the measured signals with their
+        centres and norms (computed once, read by every batch and by the noise floor)."""
+        ...
+
     def simulate_monitor(self, drive: Any, plant: Any, faults: Any, options: Any, out: Any) -> None:
         """One Monitor run into preallocated outputs."""
         ...
