@@ -310,3 +310,38 @@ def test_the_cleared_start_sets_only_the_magnitudes_under_their_incipient_thresh
     shown = {**estimate, "friction": 1.5, "short_circuit_b": 0.0, "short_circuit_c": 0.06}
     shown["eccentricity_zeta"] = 0.0
     assert cleared_start(objective, objective.genes_for(shown), health) is None
+
+
+def test_the_play_is_read_again_from_the_position_with_every_other_quantity_held(params):
+    """identification/run.py ``play_from_position``: from the Fig. 10 estimate with its play
+    wrong both ways (none, and 1 mrad for 0.4 mrad), the play read with the position in the
+    error lands within the catalogue's backlash tolerance (5e-5 rad) of the truth, every
+    other gene is returned as given, and its Monitor runs count in the objective's
+    evaluations (41 candidates in one batch, then the bounded search)."""
+    from emaprog.config.scenario import load_scenario
+    from emaprog.faults import flatten
+    from emaprog.identification.objective import Objective
+    from emaprog.identification.run import PLAY_GRID, play_from_position
+    from emaprog.models import reference
+    from emaprog.models.common import inputs
+
+    from .conftest import CONFIGS
+
+    scenario = load_scenario(CONFIGS / "fig10-multiple-faults.yaml")
+    objective = Objective(
+        reference.simulate(scenario, params),
+        inputs(scenario, params),
+        params,
+        scenario.identify,
+    )
+    truth = flatten(scenario.faults)
+    j = [g.quantity for g in objective.genes].index("backlash")
+    for wrong in (0.0, 1.0e-3):
+        start = objective.genes_for({**truth, "backlash": wrong})
+        before = objective.evaluations
+        found = play_from_position(objective, start)
+        assert found is not None
+        assert objective.evaluations - before > PLAY_GRID
+        assert objective.values(found)["backlash"] == pytest.approx(truth["backlash"], abs=5e-5)
+        others = np.arange(start.size) != j
+        assert np.array_equal(found[others], start[others])

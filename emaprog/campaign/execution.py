@@ -170,6 +170,7 @@ def run_case(spec: CaseSpec) -> dict:
             "generations": int(result.generations),
             "runs": int(result.runs),
             "cleared": bool(result.cleared),
+            "position_play": bool(result.position_play),
             "simulate_s": simulated - start,
             "identify_s": result.elapsed_s,
             "true_hinge_moment": float(spec.hinge_moment),

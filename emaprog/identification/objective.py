@@ -27,6 +27,7 @@ one, which is what fault-signature fidelity (docs/reference.md, The models) guar
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import json
 import math
@@ -230,6 +231,14 @@ class Objective:
     @property
     def dims(self) -> int:
         return len(self.genes)
+
+    def reweighted(self, weights: tuple[float, float, float]) -> Objective:
+        """The same objective with other weights of the current, position and speed errors
+        (the same recording, correction, centres and norms; its own evaluation count)."""
+        other = copy.copy(self)
+        other.target = self.target._replace(weights=np.array(weights, dtype=np.float64))
+        other.evaluations = 0
+        return other
 
     def values(self, genes: np.ndarray) -> dict[str, float]:
         """All fault quantities and nuisances of one gene row (healthy / default where not

@@ -108,6 +108,7 @@ def report_data(
             "refined": result.refined,
             "runs": result.runs,
             "cleared": result.cleared,
+            "position_play": result.position_play,
             "seed": result.ga_seed,
             "logbook": result.logbook,
         },

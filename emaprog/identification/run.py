@@ -7,7 +7,7 @@ from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
-from scipy.optimize import least_squares
+from scipy.optimize import least_squares, minimize_scalar
 from scipy.optimize import minimize as local_minimize
 
 from .. import progress
@@ -120,6 +120,7 @@ class Identification(NamedTuple):
     refined: bool
     runs: int  # independent GA runs made (the best one's GA and polish are reported)
     cleared: bool  # the polish from :func:`cleared_start` found the lowest fit
+    position_play: bool  # the play was read again from the position (:func:`play_from_position`)
     ga_seed: int  # the seed of that run (:func:`run_seed`)
     elapsed_s: float
     logbook: list[dict]
@@ -319,6 +320,56 @@ def cleared_start(
     return None if moved == values else objective.genes_for(moved)
 
 
+#: [-] The surface position's weight beside the current's (1) when the play is read again
+#: from it on a unit of another form (:func:`play_from_position`), the current's weighted
+#: error left at the size of the position's over the play's range.
+PLAY_POSITION_WEIGHT = 300.0
+#: Candidate plays of that reading, evenly over the play's bounds (one batch), before the
+#: bounded scalar search between the best one's neighbours.
+PLAY_GRID = 41
+
+
+def play_from_position(objective: Objective, genes: np.ndarray) -> np.ndarray | None:
+    """The estimate with its play read again where the play shows: in the surface position.
+
+    Every other quantity is held at ``genes`` (the current's answer); the play minimises the
+    current's error plus the position's at :data:`PLAY_POSITION_WEIGHT` (about its mean, so a
+    logger's position zero is not read as a fault): :data:`PLAY_GRID` plays in one batch over
+    the bounds, then a bounded Brent search between the best one's neighbours. None when
+    the play is not estimated.
+
+    Why only the play: through the current a play shows only by the load's impacts at the
+    reversals, which a PWM drive's current loop and a logger's filters blur; in the position
+    it is lost motion. A fit of every quantity to the position too reads the play within
+    tolerance but moves the friction on a real friction's (LuGre, Stribeck) reversals,
+    which the Monitor's dry friction cannot follow (docs/explanation/validation-and-speed.md,
+    "The surface position in the error").
+    """
+    names = [g.quantity for g in objective.genes]
+    if "backlash" not in names:
+        return None
+    j = names.index("backlash")
+    seen = objective.reweighted((1.0, PLAY_POSITION_WEIGHT, 0.0))
+    grid = np.linspace(0.0, 1.0, PLAY_GRID)
+    rows = np.tile(np.asarray(genes, float), (PLAY_GRID, 1))
+    rows[:, j] = grid
+    values = seen(rows)
+    k = int(np.argmin(values))
+
+    def fitness(x: float) -> float:
+        row = rows[k].copy()
+        row[j] = x
+        return float(seen(row[None])[0])
+
+    low, high = grid[max(k - 1, 0)], grid[min(k + 1, PLAY_GRID - 1)]
+    found = minimize_scalar(fitness, bounds=(low, high), method="bounded")
+    out = rows[k].copy()
+    if found.fun < values[k]:
+        out[j] = found.x
+    objective.evaluations += seen.evaluations
+    return out
+
+
 def choose_correction(
     trace: Trace,
     inputs: Inputs,
@@ -419,6 +470,11 @@ def identify_trace(
             )
             if value < best_fitness:
                 best, best_fitness, refined, cleared = genes, value, True, True
+    position_play = False
+    if settings.refine and not params.hysteresis_form:
+        reread = play_from_position(objective, best)
+        if reread is not None:
+            best, best_fitness, position_play = reread, float(objective(reread[None])[0]), True
     estimate = objective.values(best)
     if commissioned is None:
         commissioned = params.spec.commissioning is not None
@@ -461,6 +517,7 @@ def identify_trace(
         refined=refined,
         runs=len(fits),
         cleared=cleared,
+        position_play=position_play,
         ga_seed=chosen_seed,
         elapsed_s=time.perf_counter() - start,
         logbook=list(result.logbook),
