@@ -257,18 +257,11 @@ def test_several_runs_keep_the_lowest_fit_of_the_runs_made_alone(params):
     assert together.estimate == alone[best].estimate
 
 
-def test_the_cleared_start_sets_only_the_magnitudes_under_their_incipient_threshold_healthy(
-    params,
-):
-    """The start of the last polish (identification/run.py ``cleared_start``): each fault
-    magnitude away from healthy by less than its fault's incipient threshold (friction 0.15,
-    play 1e-4 rad, a phase's shorted fraction 0.05, zeta 0.08: the shipped set's) is set to
-    healthy; magnitudes at or past it and the eccentricity's angle are kept as they are, and
-    an estimate with nothing under a threshold gives no start (no polish is spent)."""
+@pytest.fixture
+def fig10_objective(params):
+    """The Fig. 10 scenario and the objective of its Reference run on the shipped set."""
     from emaprog.config.scenario import load_scenario
-    from emaprog.faults import flatten
     from emaprog.identification.objective import Objective
-    from emaprog.identification.run import cleared_start
     from emaprog.models import reference
     from emaprog.models.common import inputs
 
@@ -281,6 +274,21 @@ def test_the_cleared_start_sets_only_the_magnitudes_under_their_incipient_thresh
         params,
         scenario.identify,
     )
+    return scenario, objective
+
+
+def test_the_cleared_start_sets_only_the_magnitudes_under_their_incipient_threshold_healthy(
+    fig10_objective,
+):
+    """The start of the last polish (identification/run.py ``cleared_start``): each fault
+    magnitude away from healthy by less than its fault's incipient threshold (friction 0.15,
+    play 1e-4 rad, a phase's shorted fraction 0.05, zeta 0.08: the shipped set's) is set to
+    healthy; magnitudes at or past it and the eccentricity's angle are kept as they are, and
+    an estimate with nothing under a threshold gives no start (no polish is spent)."""
+    from emaprog.faults import flatten
+    from emaprog.identification.run import cleared_start
+
+    scenario, objective = fig10_objective
     health = {"friction": 0.15, "backlash": 1e-4, "short_circuit": 0.05, "eccentricity": 0.08}
     estimate = {
         **flatten(scenario.faults),
@@ -312,28 +320,18 @@ def test_the_cleared_start_sets_only_the_magnitudes_under_their_incipient_thresh
     assert cleared_start(objective, objective.genes_for(shown), health) is None
 
 
-def test_the_play_is_read_again_from_the_position_with_every_other_quantity_held(params):
+def test_the_play_is_read_again_from_the_position_with_every_other_quantity_held(
+    fig10_objective,
+):
     """identification/run.py ``play_from_position``: from the Fig. 10 estimate with its play
     wrong both ways (none, and 1 mrad for 0.4 mrad), the play read with the position in the
     error lands within the catalogue's backlash tolerance (5e-5 rad) of the truth, every
     other gene is returned as given, and its Monitor runs count in the objective's
     evaluations (41 candidates in one batch, then the bounded search)."""
-    from emaprog.config.scenario import load_scenario
     from emaprog.faults import flatten
-    from emaprog.identification.objective import Objective
     from emaprog.identification.run import PLAY_GRID, play_from_position
-    from emaprog.models import reference
-    from emaprog.models.common import inputs
 
-    from .conftest import CONFIGS
-
-    scenario = load_scenario(CONFIGS / "fig10-multiple-faults.yaml")
-    objective = Objective(
-        reference.simulate(scenario, params),
-        inputs(scenario, params),
-        params,
-        scenario.identify,
-    )
+    scenario, objective = fig10_objective
     truth = flatten(scenario.faults)
     j = [g.quantity for g in objective.genes].index("backlash")
     for wrong in (0.0, 1.0e-3):
