@@ -11,7 +11,8 @@ noise) misreads the dither the noise drives through the Reference's loop.
 Such a recording gets an echo: the Reference Model run with the recording's own estimate
 as its truth, on the recording's command, grid, load and rotor angle, with the set's
 sensor noise scaled to the recording's, and identified again by the least-squares polish
-from that truth. How far the echo's estimate lands from its truth is one draw of the
+from that truth (on a unit of another form, its play then read from the position as the
+identification reads it, :func:`.run.play_from_position`). How far the echo's estimate lands from its truth is one draw of the
 method's error under exactly these conditions; each quantity's standard error takes it in
 quadrature (docs/reference.md, "Confidence"). Conditions inside the calibration keep the
 laws alone, so the calibrated campaigns do not move.
@@ -107,7 +108,7 @@ def echo_errors(
     """Per estimated quantity (and nuisance), the echo's estimate minus its truth (module
     docstring); the eccentricity phase as the shorter arc."""
     from ..config.parameters import scaled
-    from .run import PolishCoordinates, _least_squares
+    from .run import PolishCoordinates, _least_squares, play_from_position
 
     params = objective.params
     truth = {**estimate}
@@ -143,6 +144,9 @@ def echo_errors(
     )
     again = Objective(echo, inputs, params, settings, numerics, correction)
     genes, _ = _least_squares(again, PolishCoordinates(again), again.genes_for(truth))
+    if not params.hysteresis_form:  # the play read as identification reads it on such a unit
+        reread = play_from_position(again, genes)
+        genes = genes if reread is None else reread
     found = again.values(genes)
     errors = {}
     for gene in again.genes:
