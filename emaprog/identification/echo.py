@@ -144,7 +144,7 @@ def echo_errors(
     )
     again = Objective(echo, inputs, params, settings, numerics, correction)
     genes, _ = _least_squares(again, PolishCoordinates(again), again.genes_for(truth))
-    if not params.hysteresis_form:  # the play read as identification reads it on such a unit
+    if settings.refine and not params.hysteresis_form:  # the play as identification reads it
         reread = play_from_position(again, genes)
         genes = genes if reread is None else reread
     found = again.values(genes)
