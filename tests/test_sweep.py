@@ -464,28 +464,39 @@ def test_unit_spread_and_hinge_moment_draws_keep_old_campaigns_and_stay_in_range
     """actuator_spread / hinge_moment / hinge_stiffness draws come after every earlier draw
     of a case: a campaign without them samples exactly the faults and seeds it did before
     (and a campaign without springs the same units and hinge moments); with them each
-    factor, hinge moment and spring lies in its range, and the case's unit is that set."""
+    factor, hinge moment and spring lies in its range, and the case's unit is that set.
+    Commissioning from three recordings keeps the unit, the loads and the first
+    recording, and draws the other two on seeds and loads of their own."""
     from emaprog.campaign.cases import case_specs, sample_case, sample_unit
     from emaprog.config.scenario import Uniform, load_campaign
 
     quick, base = load_campaign(ROOT / "campaigns" / "quick.yaml")
     robust, _ = load_campaign(ROOT / "campaigns" / "robustness.yaml")
     same_seed = robust.model_copy(update={"seed": quick.seed, "faults": quick.faults})
+    sprung = robust.model_copy(update={"hinge_stiffness": Uniform(uniform=(0.0, 3000.0))})
+    three = sprung.model_copy(update={"commission": 3})
     for k in range(20):
         assert sample_case(quick, k) == sample_case(same_seed, k)
-        factors, hinge, spring, commissioning = sample_unit(quick, k)
+        factors, hinge, spring, (commissioning,) = sample_unit(quick, k)
         assert set(factors.values()) == {1.0} and hinge == 0.0 and spring == 0.0
-        factors, hinge, spring, commissioning = sample_unit(robust, k)
+        factors, hinge, spring, (commissioning,) = sample_unit(robust, k)
         for name, factor in factors.items():
             lo, hi = getattr(robust.actuator_spread, name).uniform
             assert 1.0 + lo <= factor <= 1.0 + hi
         assert -100.0 <= hinge <= 100.0 and -100.0 <= commissioning.hinge_moment <= 100.0
         assert spring == 0.0 and commissioning.hinge_stiffness == 0.0
-        sprung = robust.model_copy(update={"hinge_stiffness": Uniform(uniform=(0.0, 3000.0))})
         with_springs = sample_unit(sprung, k)
         assert with_springs[:2] == (factors, hinge)
-        assert with_springs[3].hinge_moment == commissioning.hinge_moment
-        assert 0.0 <= with_springs[2] <= 3000.0 and 0.0 <= with_springs[3].hinge_stiffness <= 3000.0
+        assert with_springs[3][0].hinge_moment == commissioning.hinge_moment
+        assert (
+            0.0 <= with_springs[2] <= 3000.0 and 0.0 <= with_springs[3][0].hinge_stiffness <= 3000.0
+        )
+        with_three = sample_unit(three, k)
+        assert with_three[:3] == with_springs[:3] and with_three[3][0] == with_springs[3][0]
+        assert len(with_three[3]) == 3 and len({c.seed for c in with_three[3]}) == 3
+        for drawn in with_three[3]:
+            assert -100.0 <= drawn.hinge_moment <= 100.0
+            assert 0.0 <= drawn.hinge_stiffness <= 3000.0
     from emaprog.config import parameters
 
     params = parameters.load("default")
@@ -495,6 +506,7 @@ def test_unit_spread_and_hinge_moment_draws_keep_old_campaigns_and_stay_in_range
     assert spec.unit.spec.mechanical.motor_inertia == pytest.approx(
         params.spec.mechanical.motor_inertia * factors["motor_inertia"], rel=1e-12
     )
+    assert len(next(case_specs(three, base, params, "h", [3])).commission) == 3
 
 
 @pytest.mark.slow

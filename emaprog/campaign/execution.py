@@ -25,39 +25,49 @@ from ..models.common import inputs
 from .sampling import CaseSpec, with_hinge
 
 
-def commission_case(spec: CaseSpec, unit: Parameters) -> tuple[Parameters, dict, ResidualRecording]:
-    """Commission the case's unit from its own healthy recording.
+def commission_case(
+    spec: CaseSpec, unit: Parameters
+) -> tuple[Parameters, dict, list[ResidualRecording]]:
+    """Commission the case's unit from its own healthy recordings, as ``emaprog commission``
+    does from a rig's.
 
-    Returns the commissioned set, the row's commissioning columns and the recording's
-    residual against the commissioned healthy Monitor (``identify.nominal_correction:
-    recording``).
+    Returns the commissioned set, the row's commissioning columns (the hinge moment's and
+    the spring's errors: the first recording's) and each recording's residual against the
+    commissioned healthy Monitor (``identify.nominal_correction: recording`` applies the
+    first, as for a commissioned unit's file).
     """
     from ..fitting import commission as commissioning
 
-    assert spec.commission is not None  # the case commissions its unit
-    healthy = Scenario.model_validate(
-        {
-            **spec.scenario.model_dump(mode="json"),
-            "faults": Faults().model_dump(mode="json"),
-            "seed": spec.commission.seed,
-        }
-    )
-    recording = reference.simulate(
-        with_hinge(healthy, spec.commission.hinge_moment, spec.commission.hinge_stiffness), unit
-    )
-    prepared = commissioning.prepare(recording, f"case {spec.case_id} commissioning", spec.params)
-    fit = commissioning.fit([prepared], spec.params)  # the spring as `emaprog commission`
-    commissioning.check_explained(fit, [prepared])
+    assert spec.commission  # the case commissions its unit
+    name = f"case {spec.case_id} commissioning"
+    recordings, prepared = [], []
+    for k, drawn in enumerate(spec.commission):
+        healthy = Scenario.model_validate(
+            {
+                **spec.scenario.model_dump(mode="json"),
+                "faults": Faults().model_dump(mode="json"),
+                "seed": drawn.seed,
+            }
+        )
+        recording = reference.simulate(
+            with_hinge(healthy, drawn.hinge_moment, drawn.hinge_stiffness), unit
+        )
+        source = name if k == 0 else f"{name} recording {k + 1}"
+        recordings.append(recording)
+        prepared.append(commissioning.prepare(recording, source, spec.params))
+    fit = commissioning.fit(prepared, spec.params)  # the spring as `emaprog commission`
+    commissioning.check_explained(fit, prepared)
     commissioned = parameter_sets.scaled(
         spec.params,
         {k: fit.values[k] / fit.base[k] for k in fit.values},
         f"case {spec.case_id} commissioned unit",
     )
     true = {**unit.spec.electrical.model_dump(), **unit.spec.mechanical.model_dump()}
+    first = spec.commission[0]
     row: dict[str, float | str] = {
         f"commission_err_{k}": float(v / true[k] - 1.0) for k, v in fit.values.items()
     }
-    row["commission_err_hinge_moment"] = float(fit.hinge_moments[0] - spec.commission.hinge_moment)
+    row["commission_err_hinge_moment"] = float(fit.hinge_moments[0] - first.hinge_moment)
     row["commission_undetermined"] = ",".join(fit.not_determined)
     # the fit's own (linearised) relative standard errors, NaN where held: what the
     # commissioning model-error floors are calibrated from (benchmarks/commission_errors.py)
@@ -70,19 +80,20 @@ def commission_case(spec: CaseSpec, unit: Parameters) -> tuple[Parameters, dict,
         }
     )
     row["commission_se_hinge_moment"] = float(fit.hinge_errors[0])
-    row["commission_err_hinge_stiffness"] = float(
-        fit.hinge_stiffnesses[0] - spec.commission.hinge_stiffness
-    )
+    row["commission_err_hinge_stiffness"] = float(fit.hinge_stiffnesses[0] - first.hinge_stiffness)
     row["commission_se_hinge_stiffness"] = float(fit.stiffness_errors[0])
-    residual = recording_residual(
-        recording,
-        prepared.inputs,
-        commissioned,
-        fit.hinge_moments[0],
-        f"case {spec.case_id} commissioning",
-        hinge_stiffness=fit.hinge_stiffnesses[0],
-    )
-    return commissioned, row, residual
+    residuals = [
+        recording_residual(
+            recording,
+            ready.inputs,
+            commissioned,
+            fit.hinge_moments[k],
+            ready.source,
+            hinge_stiffness=fit.hinge_stiffnesses[k],
+        )
+        for k, (recording, ready) in enumerate(zip(recordings, prepared, strict=True))
+    ]
+    return commissioned, row, residuals
 
 
 def run_case(spec: CaseSpec) -> dict:
@@ -98,11 +109,10 @@ def run_case(spec: CaseSpec) -> dict:
         with_hinge(spec.scenario, spec.hinge_moment, spec.hinge_stiffness), unit
     )
     simulated = time.perf_counter()
-    params, recordings = spec.params, []
+    params, recordings = spec.params, list[ResidualRecording]()
     commission_row: dict[str, float | str] = {}
     if spec.commission is not None:
-        params, commission_row, residual = commission_case(spec, unit)
-        recordings = [residual]
+        params, commission_row, recordings = commission_case(spec, unit)
     commissioned = time.perf_counter()
     inp = inputs(spec.scenario, params)
     settings = resolve_settings(

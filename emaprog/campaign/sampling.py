@@ -21,7 +21,8 @@ SEED_LIMIT = 2**32  # scenario and GA seeds are uint32
 
 
 class Commissioning(NamedTuple):
-    """A case's healthy commissioning recording: its noise seed and hinge moment."""
+    """One of a case's healthy commissioning recordings: its noise seed, hinge moment and
+    aerodynamic spring."""
 
     seed: int
     hinge_moment: float  # [N m]
@@ -40,7 +41,8 @@ class CaseSpec(NamedTuple):
     unit: Parameters | None = None  # the case's own unit (actuator_spread), None: params
     hinge_moment: float = 0.0  # [N m] unknown to the identification
     hinge_stiffness: float = 0.0  # [N m/rad] unknown to the identification
-    commission: Commissioning | None = None  # commission the unit first (campaign commission)
+    #: commission the unit first from these healthy recordings (campaign ``commission``)
+    commission: tuple[Commissioning, ...] | None = None
 
 
 def identify_settings(campaign: Campaign, base: Scenario) -> IdentifySettings:
@@ -70,13 +72,15 @@ def sample_case(campaign: Campaign, case_id: int) -> tuple[bool, Faults, int, in
 
 def sample_unit(
     campaign: Campaign, case_id: int
-) -> tuple[dict[str, float], float, float, Commissioning]:
+) -> tuple[dict[str, float], float, float, tuple[Commissioning, ...]]:
     """Case ``case_id``'s unit factors, hinge moment, aerodynamic spring and commissioning
-    recording.
+    recordings (at least one, ``commission: N`` of them when N > 1).
 
     Drawn from the same stream as :func:`sample_case`, after all of its draws, every
     draw made whether or not its distribution is given: a campaign without spread keeps
-    exactly the cases it had before these keys existed.
+    exactly the cases it had before these keys existed, and the second and later
+    commissioning recordings are drawn after everything else, so that commissioning from
+    more recordings keeps each case's unit, loads and first recording.
     """
     rng = np.random.default_rng(np.random.SeedSequence(campaign.seed, spawn_key=(case_id,)))
     rng.random()
@@ -92,14 +96,21 @@ def sample_unit(
         for name, u in spread.items()
     }
     hinge = uniform_value(campaign.hinge_moment, hinge_u, 0.0)
+    recordings = [(commission_seed, commission_hinge_u, commission_spring_u)]
+    for _ in range(1, campaign.commission_recordings):
+        seed = int(rng.integers(0, SEED_LIMIT))
+        recordings.append((seed, rng.random(), rng.random()))
     return (
         factors,
         hinge,
         uniform_value(campaign.hinge_stiffness, spring_u, 0.0),
-        Commissioning(
-            commission_seed,
-            uniform_value(campaign.hinge_moment, commission_hinge_u, 0.0),
-            uniform_value(campaign.hinge_stiffness, commission_spring_u, 0.0),
+        tuple(
+            Commissioning(
+                seed,
+                uniform_value(campaign.hinge_moment, hinge_u, 0.0),
+                uniform_value(campaign.hinge_stiffness, spring_u, 0.0),
+            )
+            for seed, hinge_u, spring_u in recordings
         ),
     )
 

@@ -416,8 +416,8 @@ def _commissioning_markdown(summary: dict) -> str:
         )
         blocks.append(
             "## Commissioning\n\nEach case's unit commissioned from its own healthy "
-            "recording: |commissioned / true - 1| per parameter (hinge moment: |error| "
-            "[N m]).\n\n| parameter | n | median | p95 | max |\n|---|---|---|---|---|\n"
+            "recordings (the campaign's `commission`): |commissioned / true - 1| per "
+            "parameter (hinge moment: |error| [N m], the first recording's).\n\n| parameter | n | median | p95 | max |\n|---|---|---|---|---|\n"
             + rows
             + "\n\n"
         )

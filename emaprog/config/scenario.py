@@ -406,6 +406,8 @@ class Scenario(Strict):
 
 
 SCENARIO_TAGS = COMMAND_TAGS + LOAD_TAGS
+#: Most healthy recordings a campaign case commissions its unit from (``commission: N``).
+MAX_COMMISSION_RECORDINGS = 8
 
 
 def _validate(model: type[BaseModel], data: dict, source: str | Path, tags=()) -> Any:
@@ -536,11 +538,28 @@ class Campaign(Strict):
         description="[N m/rad] each case's aerodynamic spring, unknown to the identification "
         "(its commissioning recording draws its own)",
     )
-    commission: bool = Field(
+    commission: bool | int = Field(
         False,
-        description="each case first commissions its own unit from a healthy recording "
-        "and identifies against it",
+        description="each case first commissions its own unit from healthy recordings and "
+        "identifies against it: true for one recording, or their number (1-8), each with "
+        "its own noise seed, hinge moment and spring, as the rig workflow commissions from "
+        "several",
     )
+
+    @field_validator("commission")
+    @classmethod
+    def _commission_count(cls, value):
+        if not isinstance(value, bool) and not 0 <= value <= MAX_COMMISSION_RECORDINGS:
+            raise ValueError(
+                f"true, false or a number of healthy recordings from 0 to "
+                f"{MAX_COMMISSION_RECORDINGS}"
+            )
+        return value
+
+    @property
+    def commission_recordings(self) -> int:
+        """How many healthy recordings each case's unit is commissioned from (0: none)."""
+        return int(self.commission)
 
     @field_validator("hinge_moment")
     @classmethod
