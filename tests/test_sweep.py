@@ -509,6 +509,49 @@ def test_unit_spread_and_hinge_moment_draws_keep_old_campaigns_and_stay_in_range
     assert len(next(case_specs(three, base, params, "h", [3])).commission) == 3
 
 
+def test_a_case_commissioned_from_two_recordings_fits_both_and_corrects_with_the_first():
+    """`commission: 2`: the case's unit is commissioned from two healthy recordings of its
+    own (their own noise and hinge moments, as `emaprog commission` takes a rig's), each
+    gets its residual against the commissioned Monitor, and the first is the one the
+    `recording` correction applies. The commissioned set explains both: each residual's
+    current RMS is under 10 % of that recording's current RMS (the commissioning's own
+    acceptance, MAX_CURRENT_RESIDUAL; measured 1.5 % on both, the recordings' noise), and
+    the first recording's hinge moment (-44.6 N m drawn) is read within 5 N m (measured
+    0.4 N m; 0.4-1.3 N m from one recording on the robustness campaign's units)."""
+    from emaprog.campaign.cases import case_specs, commission_case
+    from emaprog.campaign.sampling import load_parameters, with_hinge
+    from emaprog.config.scenario import Faults, Scenario, load_campaign
+    from emaprog.fitting.commission import MAX_CURRENT_RESIDUAL
+    from emaprog.models import reference
+
+    path = ROOT / "campaigns" / "robustness.yaml"
+    campaign, base = load_campaign(path)
+    two = campaign.model_copy(update={"commission": 2})
+    spec = next(case_specs(two, base, load_parameters(path, two, base), "h", [3]))
+    _, row, residuals = commission_case(spec, spec.unit)
+    assert [r.source for r in residuals] == [
+        "case 3 commissioning",
+        "case 3 commissioning recording 2",
+    ]
+    assert abs(row["commission_err_hinge_moment"]) < 5.0
+    for drawn, residual in zip(spec.commission, residuals, strict=True):
+        healthy = Scenario.model_validate(
+            {
+                **base.model_dump(mode="json"),
+                "faults": Faults().model_dump(mode="json"),
+                "seed": drawn.seed,
+            }
+        )
+        recorded = reference.simulate(
+            with_hinge(healthy, drawn.hinge_moment, drawn.hinge_stiffness), spec.unit
+        )["current"]
+        rms = float(np.sqrt(np.mean(np.square(recorded))))
+        assert float(np.sqrt(np.mean(np.square(residual.residual["current"])))) < (
+            MAX_CURRENT_RESIDUAL * rms
+        )
+    assert not np.array_equal(residuals[0].residual["current"], residuals[1].residual["current"])
+
+
 @pytest.mark.slow
 def test_a_small_robustness_campaign_commissions_each_unit_and_stays_within_spec(tmp_path):
     """The first 4 cases of campaigns/robustness.yaml end to end (spread units, unknown
