@@ -1,6 +1,6 @@
 """Calibrate commissioning's standard errors on finished campaigns of commissioned units.
 
-Each case row of a campaign with ``commission: true`` carries, per unit parameter, the
+Each case row of a campaign with ``commission`` carries, per unit parameter, the
 commissioning error (``commission_err_<p>``: commissioned / true - 1) and the fit's own
 linearised relative standard error (``commission_se_<p>``, NaN where the parameter was held
 at the base value), and the hinge moment's error and standard error [N m]. The linearised

@@ -108,7 +108,7 @@ def echo_errors(
     """Per estimated quantity (and nuisance), the echo's estimate minus its truth (module
     docstring); the eccentricity phase as the shorter arc."""
     from ..config.parameters import scaled
-    from .run import PolishCoordinates, _least_squares, play_from_position
+    from .run import PolishCoordinates, _least_squares, form_refinement, play_from_position
 
     params = objective.params
     truth = {**estimate}
@@ -144,7 +144,7 @@ def echo_errors(
     )
     again = Objective(echo, inputs, params, settings, numerics, correction)
     genes, _ = _least_squares(again, PolishCoordinates(again), again.genes_for(truth))
-    if settings.refine and not params.hysteresis_form:  # the play as identification reads it
+    if form_refinement(settings, params):  # the play as identification reads it
         reread = play_from_position(again, genes)
         genes = genes if reread is None else reread
     found = again.values(genes)

@@ -329,6 +329,14 @@ PLAY_POSITION_WEIGHT = 300.0
 PLAY_GRID = 41
 
 
+def form_refinement(settings: IdentifySettings, params: Parameters) -> bool:
+    """Whether an identification ends with the steps for a unit of another form than the
+    hysteresis drive with an ideal chain - the polish from the cleared start
+    (:func:`cleared_start`) and the play read from the position (:func:`play_from_position`)
+    -: under ``identify.refine`` on such a set; the echo twin follows the same rule."""
+    return settings.refine and not params.hysteresis_form
+
+
 def play_from_position(objective: Objective, genes: np.ndarray) -> np.ndarray | None:
     """The estimate with its play read again where the play shows: in the surface position.
 
@@ -462,7 +470,8 @@ def identify_trace(
     assert chosen is not None  # most >= 1
     result, best, best_fitness, refined, chosen_seed = chosen
     cleared = False
-    if settings.refine and not params.hysteresis_form:
+    position_play = False
+    if form_refinement(settings, params):
         origin = cleared_start(objective, best, incipient_thresholds(params.spec.health))
         if origin is not None:
             genes, value, _ = polish(
@@ -470,8 +479,6 @@ def identify_trace(
             )
             if value < best_fitness:
                 best, best_fitness, refined, cleared = genes, value, True, True
-    position_play = False
-    if settings.refine and not params.hysteresis_form:
         reread = play_from_position(objective, best)
         if reread is not None:
             best, best_fitness, position_play = reread, float(objective(reread[None])[0]), True
