@@ -33,8 +33,8 @@ def commission_case(
 
     Returns the commissioned set, the row's commissioning columns (the hinge moment's and
     the spring's errors: the first recording's) and each recording's residual against the
-    commissioned healthy Monitor (``identify.nominal_correction: recording`` applies the
-    first, as for a commissioned unit's file).
+    commissioned healthy Monitor (``identify.nominal_correction: recording`` applies their
+    mean, as for a commissioned unit's file).
     """
     from ..fitting import commission as commissioning
 

@@ -378,6 +378,35 @@ def play_from_position(objective: Objective, genes: np.ndarray) -> np.ndarray | 
     return out
 
 
+def mean_correction(chosen: Sequence[Correction]) -> Correction:
+    """The mean of several commissioning recordings' residuals on the trace's grid.
+
+    Each residual is the model's form error under that recording's load plus its noise; an
+    inspection is made under a load of its own. The mean keeps what the recordings share,
+    halves the noise of two, and lies nearer an inspection's load between theirs (the rig
+    workflow commissions at 20 and 40 N m and inspects at 30) than either recording.
+    Measured on robustness-pwm's first 40 units, each commissioned from two recordings
+    under loads of their own (2026-12-07), against the first recording's residual alone:
+    friction's median error 1.9 -> 1.0 %, short circuit's p95 0.029 -> 0.023, fits 15.7 ->
+    12.9 x the noise floor (median); zeta's p95 0.030 -> 0.040, all within tolerance.
+    """
+    if len(chosen) == 1:
+        return chosen[0]
+    signals = [c.signals for c in chosen]
+    assert all(s is not None for s in signals)  # recording corrections carry their signals
+    mean = {
+        name: np.mean([s[name] for s in signals if s is not None], axis=0)
+        for name in signals[0] or {}
+    }
+    return Correction(
+        "recording",
+        f"mean of the residuals of {len(chosen)} commissioning recordings: "
+        + "; ".join(c.note for c in chosen),
+        mean,
+        on_grid=False,
+    )
+
+
 def choose_correction(
     trace: Trace,
     inputs: Inputs,
@@ -389,20 +418,24 @@ def choose_correction(
     """The nominal-discrepancy correction ``identify.nominal_correction`` asks for.
 
     ``recordings``: the unit's commissioning recordings' residuals (or, for one that
-    cannot be read, why); ``recording`` applies the first whose command and sample
-    grid the trace repeats, else falls back to ``reference`` and says why.
+    cannot be read, why); ``recording`` applies the mean of the residuals of those whose
+    command and sample grid the trace repeats (:func:`mean_correction`), else falls back to
+    ``reference`` and says why.
     """
     if settings.nominal_correction == "none":
         return NO_CORRECTION
     if settings.nominal_correction == "recording":
-        reasons = []
+        reasons, chosen = [], []
         for recording in recordings:
-            chosen = (
+            found = (
                 recording if isinstance(recording, str) else recording_correction(trace, recording)
             )
-            if isinstance(chosen, Correction):
-                return chosen
-            reasons.append(chosen)
+            if isinstance(found, Correction):
+                chosen.append(found)
+            else:
+                reasons.append(found)
+        if chosen:
+            return mean_correction(chosen)
         why = "; ".join(reasons) or "the parameter set carries no commissioning recording"
         return reference_correction(
             inputs, params, numerics, f"reference (recording asked, not applicable: {why})"
