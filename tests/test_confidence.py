@@ -185,6 +185,41 @@ def test_recording_correction_needs_the_same_command_on_the_same_grid():
     assert "grid" in recording_correction(_trace(command, rate=5e3), recording)
 
 
+def test_the_recording_correction_is_the_mean_of_the_commissioning_recordings_repeated():
+    """Of a unit's commissioning recordings, those whose command and grid the inspection
+    repeats are averaged (each residual is the form error under its own load plus its own
+    noise); one on another command is left out, and with none repeated `reference` applies
+    and says why."""
+    from emaprog.identification.run import choose_correction
+    from emaprog.models.common import inputs
+
+    params = parameters.load("default")
+    scenario = load_scenario(CONFIGS / "chirp-nominal.yaml")
+    inp = inputs(scenario, params)
+    time = inp.time - inp.time[0]
+    command = np.asarray(inp.command, float)
+    settings = scenario.identify.model_copy(update={"nominal_correction": "recording"})
+
+    def recording(name: str, level: float, repeated: bool = True) -> ResidualRecording:
+        residual = {s: np.full(time.size, level) for s in ("current", "position", "speed")}
+        return ResidualRecording(name, time, command if repeated else 1.1 * command, residual)
+
+    trace = _trace(command, rate=1.0 / (time[1] - time[0]))
+    both = choose_correction(
+        trace, inp, params, settings, recordings=[recording("a.csv", 0.1), recording("b.csv", 0.3)]
+    )
+    assert both.applied == "recording" and "a.csv" in both.note and "b.csv" in both.note
+    assert both.signals is not None and np.allclose(both.signals["current"], 0.2, rtol=1e-12)
+    other = recording("c.csv", 0.5, repeated=False)
+    one = choose_correction(
+        trace, inp, params, settings, recordings=[recording("a.csv", 0.1), other]
+    )
+    assert one.signals is not None and np.allclose(one.signals["speed"], 0.1, rtol=1e-12)
+    assert "c.csv" not in one.note
+    none = choose_correction(trace, inp, params, settings, recordings=[other])
+    assert none.applied == "reference" and "c.csv" in none.note
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize(
     "command",

@@ -509,11 +509,11 @@ def test_unit_spread_and_hinge_moment_draws_keep_old_campaigns_and_stay_in_range
     assert len(next(case_specs(three, base, params, "h", [3])).commission) == 3
 
 
-def test_a_case_commissioned_from_two_recordings_fits_both_and_corrects_with_the_first():
+def test_a_case_commissioned_from_two_recordings_fits_both_and_gives_both_residuals():
     """`commission: 2`: the case's unit is commissioned from two healthy recordings of its
     own (their own noise and hinge moments, as `emaprog commission` takes a rig's), each
-    gets its residual against the commissioned Monitor, and the first is the one the
-    `recording` correction applies. The commissioned set explains both: each residual's
+    gets its residual against the commissioned Monitor, for the `recording` correction to
+    average. The commissioned set explains both: each residual's
     current RMS is under 10 % of that recording's current RMS (the commissioning's own
     acceptance, MAX_CURRENT_RESIDUAL; measured 1.5 % on both, the recordings' noise), and
     the first recording's hinge moment (-44.6 N m drawn) is read within 5 N m (measured
