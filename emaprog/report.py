@@ -146,10 +146,17 @@ def identification_summary(report: dict) -> str:
     health = ", ".join(f"{fault} {verdict}" for fault, verdict in report["health"].items())
     lines = [f"health: {health}"]
     for fault in PHASE_FAULTS:
-        if report["health"].get(fault) not in ("incipient", "degraded"):
-            continue
+        verdict = report["health"].get(fault)
         phase = report.get(f"{fault}_phase")
         isolation = report["confidence"]["isolation"].get(fault)
+        if verdict == "inconclusive" and phase:
+            lines.append(
+                f"{FAULTS[fault].label} inconclusive at its threshold: suspect phase "
+                f"{phase.upper()}"
+                + (f" (confidence {isolation['confidence']:.0%})" if isolation else "")
+            )
+        if verdict not in ("incipient", "degraded"):
+            continue
         if not phase and isolation:
             lines.append(
                 f"{FAULTS[fault].label}: phase not determined, "
@@ -207,16 +214,28 @@ def _operating_lines(report: dict) -> list[str]:
 
 def _phase_sentence(report: dict) -> str:
     """Which phase each per-phase fault is on, only when it is flagged (incipient or
-    degraded)."""
+    degraded), or the suspect one beside an ``inconclusive`` verdict at its threshold."""
     return " ".join(_fault_phase_sentence(report, fault) for fault in PHASE_FAULTS)
 
 
 def _fault_phase_sentence(report: dict, fault: str) -> str:
     label = fault.replace("_", " ")
-    if report["health"].get(fault) not in ("incipient", "degraded"):
-        return f"No {label} flagged: no faulty phase named."
     phase = report.get(f"{fault}_phase")
     isolation = report["confidence"]["isolation"].get(fault)
+    if report["health"].get(fault) == "inconclusive" and phase:
+        return (
+            f"{label.capitalize()} inconclusive at its incipient threshold (its interval clear "
+            f"of healthy, not of the threshold): suspect phase {phase.upper()}, its interval "
+            "apart from every other phase's"
+            + (
+                f" (confidence {isolation['confidence']:.1%} against phase "
+                f"{isolation['runner_up'].upper()})."
+                if isolation
+                else "."
+            )
+        )
+    if report["health"].get(fault) not in ("incipient", "degraded"):
+        return f"No {label} flagged: no faulty phase named."
     if phase is None and isolation is not None:
         why = (
             f"below the {MIN_PHASE_CONFIDENCE:.0%} a named phase needs"

@@ -117,6 +117,54 @@ def test_a_short_circuit_split_between_two_phases_names_neither():
     assert "phase not determined: A or B" in _phase_sentence(report)
 
 
+def test_an_inconclusive_short_at_its_threshold_names_its_suspect_phase():
+    """A short on C read 0.056 [0.048, 0.064] beside A and B under 0.01, inconclusive only
+    because its interval does not clear the 0.05 threshold (robustness-pwm's case 64): the
+    verdict stays inconclusive and names C as the suspect phase, its interval apart from the
+    runner-up's; with the intervals overlapping, or inconclusive for another reason (a fit the
+    Monitor does not explain), no phase is named."""
+    from types import SimpleNamespace
+
+    from emaprog.config import parameters
+    from emaprog.identification.result import judge
+    from emaprog.report import _phase_sentence
+
+    values = {"short_circuit_a": 0.004, "short_circuit_b": 0.006, "short_circuit_c": 0.056}
+    apart = {
+        "phase": "c",
+        "runner_up": "b",
+        "delta_chi2": 310.0,
+        "confidence": 1.0,
+        "separated": True,
+    }
+
+    def verdict(isolation, at_threshold):
+        confidence = SimpleNamespace(
+            inconclusive={"short_circuit": "interval"},
+            isolation={"short_circuit": isolation},
+            basis="form",
+            at_threshold=at_threshold,
+        )
+        result = SimpleNamespace(estimate=values, confidence=confidence)
+        return judge(result, ["short_circuit"], parameters.load("default-pwm"))
+
+    named = verdict(apart, ("short_circuit",))
+    assert named.health["short_circuit"] == "inconclusive"
+    assert named.phase["short_circuit"] == "c" and named.isolation["short_circuit"] == apart
+    report = {
+        "health": named.health,
+        "short_circuit_phase": "c",
+        "confidence": {"isolation": named.isolation},
+    }
+    assert "inconclusive at its incipient threshold" in _phase_sentence(report)
+    assert "suspect phase C" in _phase_sentence(report)
+    overlapping = verdict({**apart, "separated": False}, ("short_circuit",))
+    assert overlapping.phase["short_circuit"] is None
+    unexplained = verdict(apart, ())
+    assert unexplained.phase["short_circuit"] is None
+    assert unexplained.isolation["short_circuit"] is None
+
+
 def test_off_the_calibration_an_echo_twin_widens_the_intervals():
     """A healthy twin driven by a 0.05 rad step: the Monitor reads a backlash of about 4e-5
     rad on every such twin (campaigns/off-calibration/step.yaml: 22 healthy cases, 3.8-4.6e-5),

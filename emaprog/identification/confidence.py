@@ -115,18 +115,29 @@ def named_phase(
     flagged: bool,
     isolation: dict | None,
     basis: str = "unit",
+    suspect: bool = False,
 ) -> str | None:
     """The phase a verdict names for the per-phase ``fault``: the worst one, when the fault
     is flagged and told from the runner-up with at least :data:`MIN_PHASE_CONFIDENCE`; on
     :data:`CLEAR_FINDING_BASES` also only when their 90 % intervals are apart (on the first
     robustness-pwm run with the form's laws, 119 shorts named, one on the wrong phase: a
     short on C of 0.19 read as A 0.121 [0.078, 0.164] beside C 0.079 [0.045, 0.113] at 98 %
-    confidence; with the intervals apart, 110 named, none wrong)."""
-    if not flagged:
+    confidence; with the intervals apart, 110 named, none wrong).
+
+    ``suspect``: the fault is ``inconclusive`` at its threshold only (:attr:`Confidence.
+    at_threshold`: its interval clear of healthy but not of the incipient threshold): the
+    phase is named as the suspect one under the same confidence and, on every basis, with
+    its interval apart from the runner-up's. On the form campaigns stored on 2026-12-06 and
+    -07 (robustness-pwm three times, calibration-pwm three times) 12 such verdicts had their
+    worst phase's interval apart from the runner-up's, all 12 on the truly shorted phase
+    (true fractions 0.040-0.064 read 0.051-0.068)."""
+    if not (flagged or suspect):
         return None
-    if isolation is not None and isolation["confidence"] < MIN_PHASE_CONFIDENCE:
+    if isolation is None:
+        return None if suspect else worst_phase(values, fault)
+    if isolation["confidence"] < MIN_PHASE_CONFIDENCE:
         return None
-    if basis in CLEAR_FINDING_BASES and isolation is not None and not isolation["separated"]:
+    if (suspect or basis in CLEAR_FINDING_BASES) and not isolation["separated"]:
         return None
     return worst_phase(values, fault)
 
@@ -190,6 +201,9 @@ class Confidence(NamedTuple):
     fault_load: float  # the estimate's :func:`~emaprog.faults.fault_load` [-]
     basis: str = "unit"  # which model-error laws were used (:data:`BASES`)
     echo: dict | None = None  # off the calibration: {"reasons", "errors"} (:mod:`.echo`)
+    #: the faults ``inconclusive`` only because their interval does not clear the incipient
+    #: threshold while it clears healthy (the fit explained, the recording informative)
+    at_threshold: tuple[str, ...] = ()
 
 
 def noise_floor(
@@ -578,6 +592,7 @@ def assess(
                 )
     linear = {name: s for name, s in linear.items() if name not in PLANE_COORDINATES}
     inconclusive = {}
+    at_threshold: list[str] = []
     why_not = uninformative(objective, trace, floor)
     for fault in estimated:
         if why_not is not None:
@@ -595,6 +610,8 @@ def assess(
         )
         if why is not None:
             inconclusive[fault] = why
+            if severity_interval(fault, interval)[0] > 0.0:
+                at_threshold.append(fault)
     phased = [fault for fault in PHASE_FAULTS if fault in estimated]
     length = correlation_length(residual, blocks) if phased else 0.0
     isolation = {
@@ -639,6 +656,7 @@ def assess(
         load,
         basis,
         echo,
+        tuple(at_threshold),
     )
 
 

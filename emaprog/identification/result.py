@@ -72,16 +72,21 @@ def judge(
     """The :class:`Verdict` of an identification: health per estimated fault under the set's
     thresholds (``inconclusive`` where the recording cannot tell), the error against a known
     truth, and each per-phase fault's faulty phase with its confidence only beside its
-    flagged verdict (:func:`~emaprog.identification.confidence.named_phase`)."""
+    flagged verdict, or as the suspect phase beside an ``inconclusive`` one at its threshold
+    (:func:`~emaprog.identification.confidence.named_phase`)."""
     from .confidence import named_phase
 
-    verdicts = health(result.estimate, estimated, params, result.confidence.inconclusive)
+    confidence = result.confidence
+    verdicts = health(result.estimate, estimated, params, confidence.inconclusive)
     phase, isolation = {}, {}
     for fault in PHASE_FAULTS:
         flagged = verdicts.get(fault) in ("incipient", "degraded")
-        found = result.confidence.isolation.get(fault)
-        phase[fault] = named_phase(result.estimate, fault, flagged, found, result.confidence.basis)
-        isolation[fault] = found if flagged else None
+        suspect = verdicts.get(fault) == "inconclusive" and fault in confidence.at_threshold
+        found = confidence.isolation.get(fault)
+        phase[fault] = named_phase(
+            result.estimate, fault, flagged, found, confidence.basis, suspect
+        )
+        isolation[fault] = found if flagged or suspect else None
     return Verdict(
         verdicts,
         errors(result.estimate, truth) if truth is not None else None,
