@@ -78,6 +78,17 @@ def test_a_fault_seen_at_one_inspection_gets_no_remaining_useful_life(tmp_path):
     assert json.loads((tmp_path / "trend" / "trend.json").read_text())["faults"]["friction"]["note"]
 
 
+def _isolation(phase, runner_up, delta_chi2, confidence, separated):
+    """A report's ``confidence.isolation`` entry for a per-phase fault."""
+    return {
+        "phase": phase,
+        "runner_up": runner_up,
+        "delta_chi2": delta_chi2,
+        "confidence": confidence,
+        "separated": separated,
+    }
+
+
 def test_a_short_circuit_split_between_two_phases_names_neither():
     """Flagged, but A and B told apart at 68 % (like a 2 kHz recording's 0.064 / 0.060): no phase
     named, the two candidates said; at 99 % the worst phase is named; unflagged, none."""
@@ -85,13 +96,7 @@ def test_a_short_circuit_split_between_two_phases_names_neither():
     from emaprog.report import _phase_sentence
 
     values = {"short_circuit_a": 0.064, "short_circuit_b": 0.063, "short_circuit_c": 0.014}
-    split = {
-        "phase": "a",
-        "runner_up": "b",
-        "delta_chi2": 1.47,
-        "confidence": 0.68,
-        "separated": False,
-    }
+    split = _isolation("a", "b", 1.47, 0.68, separated=False)
     clear = {**split, "confidence": 0.99}
     assert MIN_PHASE_CONFIDENCE == 0.9
     fault = "short_circuit"
@@ -130,13 +135,7 @@ def test_an_inconclusive_short_at_its_threshold_names_its_suspect_phase():
     from emaprog.report import _phase_sentence
 
     values = {"short_circuit_a": 0.004, "short_circuit_b": 0.006, "short_circuit_c": 0.056}
-    apart = {
-        "phase": "c",
-        "runner_up": "b",
-        "delta_chi2": 310.0,
-        "confidence": 1.0,
-        "separated": True,
-    }
+    apart = _isolation("c", "b", 310.0, 1.0, separated=True)
 
     def verdict(isolation, at_threshold):
         confidence = SimpleNamespace(
