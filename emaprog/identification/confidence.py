@@ -610,7 +610,8 @@ def assess(
         )
         if why is not None:
             inconclusive[fault] = why
-            if severity_interval(fault, interval)[0] > 0.0:
+            low, high = severity_interval(fault, interval)
+            if low > 0.0 and math.isfinite(high):
                 at_threshold.append(fault)
     phased = [fault for fault in PHASE_FAULTS if fault in estimated]
     length = correlation_length(residual, blocks) if phased else 0.0
