@@ -226,7 +226,7 @@ def _fault_phase_sentence(report: dict, fault: str) -> str:
         return (
             f"{label.capitalize()} inconclusive at its incipient threshold (its interval clear "
             f"of healthy, not of the threshold): suspect phase {phase.upper()}, its interval "
-            "apart from every other phase's"
+            "apart from the runner-up phase's"
             + (
                 f" (confidence {isolation['confidence']:.1%} against phase "
                 f"{isolation['runner_up'].upper()})."
