@@ -150,10 +150,10 @@ def identification_summary(report: dict) -> str:
         phase = report.get(f"{fault}_phase")
         isolation = report["confidence"]["isolation"].get(fault)
         if verdict == "inconclusive" and phase:
+            # a suspect phase is only named with its isolation (confidence.named_phase)
             lines.append(
                 f"{FAULTS[fault].label} inconclusive at its threshold: suspect phase "
-                f"{phase.upper()}"
-                + (f" (confidence {isolation['confidence']:.0%})" if isolation else "")
+                f"{phase.upper()} (confidence {isolation['confidence']:.0%})"
             )
         if verdict not in ("incipient", "degraded"):
             continue
@@ -226,13 +226,8 @@ def _fault_phase_sentence(report: dict, fault: str) -> str:
         return (
             f"{label.capitalize()} inconclusive at its incipient threshold (its interval clear "
             f"of healthy, not of the threshold): suspect phase {phase.upper()}, its interval "
-            "apart from the runner-up phase's"
-            + (
-                f" (confidence {isolation['confidence']:.1%} against phase "
-                f"{isolation['runner_up'].upper()})."
-                if isolation
-                else "."
-            )
+            f"apart from the runner-up phase's (confidence {isolation['confidence']:.1%} "
+            f"against phase {isolation['runner_up'].upper()})."
         )
     if report["health"].get(fault) not in ("incipient", "degraded"):
         return f"No {label} flagged: no faulty phase named."
