@@ -333,6 +333,7 @@ def simulate_monitor(drive, plant, faults, options, out):
     line, line_rate = 0.0, 0.0  # the current line's filter
     point = sens.current_point
     theta_e0 = drive.electrical_angle
+    recorded = drive.motor_angle
     last_sector = sector(theta_e0)
     theta_m = 0.0
     omega_m = 0.0
@@ -355,8 +356,15 @@ def simulate_monitor(drive, plant, faults, options, out):
         out.current[k] = mean_current
         load = drive.load_torque[k] + drive.load_offset
         mean_current = 0.0
-        for _ in range(substeps):
-            theta_e = pp * theta_m + theta_e0
+        synced = k < recorded.size and not math.isnan(recorded[k])
+        if synced:
+            ahead = recorded[k + 1] if k + 1 < recorded.size else math.nan
+            slope = (ahead - recorded[k]) / substeps if not math.isnan(ahead) else 0.0
+        for j in range(substeps):
+            if synced:
+                theta_e = pp * (recorded[k] + slope * j) + theta_e0
+            else:
+                theta_e = pp * theta_m + theta_e0
             s6 = sector(theta_e)
             gain = sector_gain[s6]
             if eccentric and paper_shape:
@@ -628,6 +636,7 @@ def _simulate_candidate(row, unit, drive, plant, options):
         drive.load_stiffness + unit[U_HINGE_STIFFNESS],
         unit[U_HINGE_MOMENT],
         drive.electrical_angle,
+        drive.motor_angle,
     )
     out = MonitorOutputs(np.empty(n), np.empty(n), np.empty(n), np.empty(n))
     simulate_monitor(own_drive, unit_plant(plant, unit), candidate, options, out)

@@ -173,6 +173,9 @@ class Drive(NamedTuple):
     electrical_angle: (
         float  # [rad] rotor electrical angle at the first sample (0: at electrical zero)
     )
+    #: (n,) [rad] the recorded motor angle on the grid, from 0 at the first sample (NaN
+    #: where not recorded), that the Monitor commutates on; (0,): its own angle
+    motor_angle: np.ndarray
 
 
 class SensorNoise(NamedTuple):

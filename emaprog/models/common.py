@@ -13,6 +13,10 @@ from ..config.scenario import Scenario
 from ..kernels.structs import Drive
 
 
+#: The Drive's ``motor_angle`` when the Monitor commutates on its own angle.
+NO_ANGLE = np.empty(0)
+
+
 class Inputs(NamedTuple):
     """Operating inputs sampled on the controller grid."""
 
@@ -22,6 +26,7 @@ class Inputs(NamedTuple):
     load_stiffness: float  # [N m/rad]
     lead: int = 0  # samples before the recording's first one (time < 0): the models settle
     electrical_angle: float = 0.0  # [rad] the rotor's electrical angle at the grid's first sample
+    motor_angle: np.ndarray | None = None  # [rad] recorded, on the grid (NaN: not recorded)
 
     def drive(self, hinge_moment: float = 0.0) -> Drive:
         """The kernels' :class:`~emaprog.kernels.structs.Drive`, plus a constant hinge moment [N m]."""
@@ -31,6 +36,7 @@ class Inputs(NamedTuple):
             float(self.load_stiffness),
             float(hinge_moment),
             float(self.electrical_angle),
+            NO_ANGLE if self.motor_angle is None else self.motor_angle,
         )
 
 
@@ -116,10 +122,32 @@ def inputs_from_trace(trace, params: Parameters, load_spec=None) -> Inputs:
         if angle:
             turns = params.spec.electrical.pole_pairs * params.spec.mechanical.gear_ratio
             angle -= turns * float(np.asarray(trace["position"], dtype=np.float64)[0])
+    motor = recorded_motor_angle(trace, t_rec, grid, lead, params)
     if load_spec is None:
-        return Inputs(grid, command, np.zeros(grid.size), 0.0, lead, angle)
+        return Inputs(grid, command, np.zeros(grid.size), 0.0, lead, angle, motor)
     torque, stiffness = signals.load(load_spec, grid)
-    return Inputs(grid, command, torque, stiffness, lead, angle)
+    return Inputs(grid, command, torque, stiffness, lead, angle, motor)
+
+
+def recorded_motor_angle(trace, t_rec, grid, lead: int, params: Parameters):
+    """The recorded motor angle on the grid in the models' convention, or None.
+
+    The models' motor angle starts at 0 on the grid's first instant; the recording's
+    first sample is at its own angle there, or, with a lead, at the first position times
+    the gear ratio (where the models travel to). Lead instants are NaN: the Monitor
+    commutates on its own angle until the recording starts."""
+    import os
+
+    columns = getattr(trace, "columns", {})
+    if "motor_angle" not in columns or os.environ.get("EMAPROG_NO_SYNC"):
+        return None
+    measured = np.asarray(trace["motor_angle"], dtype=np.float64)
+    relative = np.interp(grid[lead:], t_rec, measured - measured[0])
+    if lead:
+        gear = params.spec.mechanical.gear_ratio
+        relative = relative + gear * float(np.asarray(trace["position"], dtype=np.float64)[0])
+        relative = np.concatenate([np.full(lead, np.nan), relative])
+    return np.ascontiguousarray(relative)
 
 
 class Instants(NamedTuple):
