@@ -4,7 +4,8 @@ with the model's parts switched on one at a time, beside the plain-loop yardstic
 Rows: the plain single-phase numba loop of ``benchmarks/run.py``; the healthy Monitor
 without and with the commutation transients; then each fault alone (friction and
 backlash; a 20 % short on phase A; eccentricity zeta 0.2, whose pair law costs a cos
-and a sin a step); all Fig. 10 faults. The differences between rows are what each
+and a sin a step); all Fig. 10 faults; the same commutating on a recorded motor angle
+(docs/reference.md, "The models"). The differences between rows are what each
 part costs a step. Each figure is the median of ``--repeat`` runs after a warm-up.
 Run: ``python benchmarks/monitor_profile.py [--json] [--repeat N]``.
 """
@@ -58,6 +59,11 @@ def measure(repeat: int) -> list[dict]:
         faults = monitor_form(values, gain)
         seconds = median_time(lambda f=faults, o=opts: monitor.run(params, inp, f, opts=o), repeat)
         rows.append({"case": name, "ms": 1e3 * seconds})
+    # commutating on a recorded motor angle (a rig's resolver; here the Monitor's own travel)
+    faults = monitor_form(flatten(scenario.faults), gain)
+    recorded = inp._replace(motor_angle=monitor.run(params, inp, faults)["motor_angle"])
+    seconds = median_time(lambda: monitor.run(params, recorded, faults), repeat)
+    rows.append({"case": "Fig. 10 faults, on a recorded motor angle", "ms": 1e3 * seconds})
     for row in rows:
         row["ns_per_step"] = 1e6 * row["ms"] / steps
         row["per_plain"] = row["ms"] / rows[0]["ms"]

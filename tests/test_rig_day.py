@@ -27,6 +27,8 @@ import yaml
 from typer.testing import CliRunner
 
 from emaprog.cli import app
+from emaprog.config import parameters as ps
+from emaprog.io.recordings import check_plausible, load_column_map, read_recording
 
 from .conftest import ROOT
 
@@ -500,6 +502,33 @@ def test_mis_mapped_channels_are_named_before_fitting(tmp_path, edit, channel, f
     assert result.exit_code == 2, result.output
     assert channel in result.output and fragment in result.output, result.output
     assert not (tmp_path / "rep").exists()
+
+
+@pytest.mark.parametrize(
+    "scale,fragment",
+    [(180.0 / np.pi, "deg mapped as rad?"), (-1.0, "the sign is inverted"), (0.5, "gear_ratio")],
+)
+def test_a_motor_angle_off_the_position_is_named_before_fitting(tmp_path, scale, fragment):
+    """The Monitor commutates on a mapped motor angle, so its travel must be the position's
+    times the gear ratio (within 30 %; a motor angle built as exactly that passes): a wrong
+    unit, sign or scale exits 2 naming motor_angle and the likely mistake, nothing written."""
+    frame = logger_frame("inspection-1500h.csv")
+    frame["MotAng_deg"] = 180.0 * frame["Pos_deg"]
+    path = write_logger(frame, tmp_path / "with-angle.csv")
+    mapping = yaml.safe_load((RIG / "logger.yaml").read_text())
+    good = {**mapping, "motor_angle": {"column": "MotAng_deg", "unit": "deg"}}
+    bad = {**mapping, "motor_angle": {"column": "MotAng_deg", "unit": "deg", "scale": scale}}
+    for name, content in (("good.yaml", good), ("bad.yaml", bad)):
+        (tmp_path / name).write_text(yaml.safe_dump(content))
+    unit = ps.load("default")
+    good_map = load_column_map(tmp_path / "good.yaml")
+    check_plausible(read_recording(path, good_map, unit, tmp_path / "good.yaml"), unit, path)
+    result = run(
+        ["identify", str(path), "--columns", str(tmp_path / "bad.yaml"), "-o", str(tmp_path / "r")]
+    )
+    assert result.exit_code == 2, result.output
+    assert "motor_angle" in result.output and fragment in result.output, result.output
+    assert not (tmp_path / "r").exists()
 
 
 @pytest.mark.slow

@@ -12,7 +12,6 @@ from ..config.parameters import Parameters
 from ..config.scenario import Scenario
 from ..kernels.structs import Drive
 
-
 #: The Drive's ``motor_angle`` when the Monitor commutates on its own angle.
 NO_ANGLE = np.empty(0)
 
@@ -129,17 +128,21 @@ def inputs_from_trace(trace, params: Parameters, load_spec=None) -> Inputs:
     return Inputs(grid, command, torque, stiffness, lead, angle, motor)
 
 
-def recorded_motor_angle(trace, t_rec, grid, lead: int, params: Parameters):
+def recorded_motor_angle(
+    trace, t_rec: np.ndarray, grid: np.ndarray, lead: int, params: Parameters
+) -> np.ndarray | None:
     """The recorded motor angle on the grid in the models' convention, or None.
 
-    The models' motor angle starts at 0 on the grid's first instant; the recording's
-    first sample is at its own angle there, or, with a lead, at the first position times
-    the gear ratio (where the models travel to). Lead instants are NaN: the Monitor
-    commutates on its own angle until the recording starts."""
-    import os
-
-    columns = getattr(trace, "columns", {})
-    if "motor_angle" not in columns or os.environ.get("EMAPROG_NO_SYNC"):
+    The drive commutates on its own angle sensor, so the Monitor does on the recorded one
+    (docs/reference.md, "The models"): a Monitor on its own angle is off the unit's by the
+    small differences of the motor's travel any model leaves (+/-0.006 rad of motor angle
+    measured on a PWM unit with its true values: commutations up to 80 us apart, each a
+    1-2 A current residual that does not carry from one load to another). The models'
+    motor angle starts at 0 on the grid's first instant; the recording's first sample is
+    at its own angle there, or, with a lead, at the first position times the gear ratio
+    (where the models travel to). Lead instants are NaN: there the Monitor commutates on
+    its own angle."""
+    if "motor_angle" not in getattr(trace, "columns", {}):
         return None
     measured = np.asarray(trace["motor_angle"], dtype=np.float64)
     relative = np.interp(grid[lead:], t_rec, measured - measured[0])
