@@ -215,10 +215,11 @@ def test_the_monitor_commutating_on_the_recorded_motor_angle_follows_the_current
 
 
 def test_the_recorded_motor_angle_reaches_the_grid_in_the_models_convention(pwm):
-    """From 0 at the first recorded sample, interpolated onto the controller grid (a 5 kHz
-    log onto 10 kHz: midpoints exact for a linear travel); with a settling lead, NaN over the
-    lead (the Monitor commutates on its own angle there) and offset by the first position
-    times the gear ratio, where the models travel to."""
+    """For a unit of another form: from 0 at the first recorded sample, interpolated onto
+    the controller grid (a 5 kHz log onto 10 kHz: midpoints exact for a linear travel); with
+    a settling lead, NaN over the lead (the Monitor commutates on its own angle there) and
+    offset by the first position times the gear ratio, where the models travel to. None
+    without a motor angle, and for the hysteresis form."""
     from emaprog.io.storage import Trace
     from emaprog.models.common import recorded_motor_angle
 
@@ -235,3 +236,5 @@ def test_the_recorded_motor_angle_reaches_the_grid_in_the_models_convention(pwm)
     gear = pwm.spec.mechanical.gear_ratio
     assert np.allclose(with_lead[lead:], 40.0 * grid + gear * 0.01, rtol=0, atol=1e-12)
     assert recorded_motor_angle(Trace({"time": t_rec}, {}), t_rec, grid, 0, pwm) is None
+    hysteresis = parameters.load("default")  # its Monitor keeps its own commutations
+    assert recorded_motor_angle(trace, t_rec, grid, 0, hysteresis) is None
