@@ -17,8 +17,11 @@ fault, beside which others, the Monitor meets least on a unit of this form. ``--
 cogging,hall`` makes those differences of form ideal (``independent_unit.IDEALS``: cogging,
 hall, stribeck, warming, emf-edges, dead-time, logger-gains), to measure what each costs.
 
+``--motor-angle`` has the logger record the drive's resolver angle too (16 bits within a
+turn), mapped as ``motor_angle``.
+
 Run: ``python benchmarks/independent_rig.py OUT_DIR [--units N] [--seed S]
-[--set standard|fig10-parts] [--ideal NAMES] [--json]`` (about 1.5 min a unit on 2 cores;
+[--set standard|fig10-parts] [--ideal NAMES] [--motor-angle] [--json]`` (about 1.5 min a unit on 2 cores;
 fig10-parts about 10 min).
 """
 
@@ -101,9 +104,11 @@ def unit_rows(
     seed: int,
     inspected: dict[str, iu.Faults] = INSPECTIONS,
     ideals: tuple[str, ...] = (),
+    motor_angle: bool = False,
 ) -> list[dict]:
-    """Write unit ``seed``'s folder (its differences ``ideals`` made ideal), run the rig
-    commands, compare each report with the truth."""
+    """Write unit ``seed``'s folder (its differences ``ideals`` made ideal; with
+    ``motor_angle`` its logger records the resolver angle), run the rig commands, compare
+    each report with the truth."""
     unit = iu.ideal(iu.spread_unit(np.random.default_rng(seed)), ideals)
     healthy = [
         iu.Test(hinge_moment=20.0, spring=1500.0, seed=100 * seed + 1),
@@ -113,7 +118,7 @@ def unit_rows(
         name: (faults, iu.Test(hinge_moment=30.0, spring=2000.0, seed=100 * seed + 10 + j))
         for j, (name, faults) in enumerate(inspected.items())
     }
-    iu.write_unit(folder, unit, healthy, inspections)
+    iu.write_unit(folder, unit, healthy, inspections, motor_angle)
     commissioned = run(
         ["emaprog", "commission", "healthy-0.csv", "healthy-1.csv", "--columns", "logger.yaml"]
         + ["-o", "unit.yaml", "-p", "default-pwm"],
@@ -252,15 +257,20 @@ def main() -> int:
     args.add_argument("--seed", type=int, default=1)
     args.add_argument("--set", choices=sorted(SETS), default="standard", dest="inspections")
     args.add_argument("--ideal", type=ideal_names, default=(), help="e.g. cogging,hall")
+    args.add_argument(
+        "--motor-angle", action="store_true", help="the logger records the resolver angle too"
+    )
     a = args.parse_args()
     rows: list[dict] = []
     for seed in range(a.seed, a.seed + a.units):
-        rows += unit_rows(a.out / f"unit-{seed}", seed, SETS[a.inspections], a.ideal)
+        folder = a.out / f"unit-{seed}"
+        rows += unit_rows(folder, seed, SETS[a.inspections], a.ideal, a.motor_angle)
     result = {
         "units": a.units,
         "seed": a.seed,
         "set": a.inspections,
         "ideal": list(a.ideal),
+        "motor_angle": a.motor_angle,
         "summary": summarise(rows),
         "rows": rows,
     }

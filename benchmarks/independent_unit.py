@@ -574,9 +574,17 @@ current_c: {column: "I_W [A]", unit: A}
 """
 
 
-def write_csv(path: Path, rec: dict[str, np.ndarray]) -> None:
-    """The recording as the logger exports it."""
-    cols = (
+#: The column of the drive's resolver angle, where the logger records it (``--motor-angle``).
+RESOLVER_HEADER = "Rotorlage [deg]"
+RESOLVER_MAP = f'motor_angle: {{column: "{RESOLVER_HEADER}", unit: deg}}\n'
+#: The resolver's resolution [rad]: 16 bits a turn.
+RESOLVER_LSB = 2.0 * math.pi / 65536
+
+
+def write_csv(path: Path, rec: dict[str, np.ndarray], motor_angle: bool = False) -> None:
+    """The recording as the logger exports it; with ``motor_angle`` also the drive's
+    resolver angle, 16 bits within a turn (0-360 deg, as a resolver reads it)."""
+    cols = [
         rec["time"],
         np.degrees(rec["command"]),
         np.degrees(rec["position"]),
@@ -584,9 +592,15 @@ def write_csv(path: Path, rec: dict[str, np.ndarray]) -> None:
         rec["current_a"],
         rec["current_b"],
         rec["current_c"],
-    )
-    fmt = ("{:.5f}", "{:.5f}", "{:.5f}", "{:.2f}", "{:.4f}", "{:.4f}", "{:.4f}")
-    lines = ["Pruefstand 3; Aktuator-Pruefung", ";".join(HEADER)]
+    ]
+    fmt = ["{:.5f}", "{:.5f}", "{:.5f}", "{:.2f}", "{:.4f}", "{:.4f}", "{:.4f}"]
+    header = list(HEADER)
+    if motor_angle:
+        counts = np.floor(rec["true_motor_angle"] / RESOLVER_LSB) * RESOLVER_LSB
+        cols.append(np.degrees(np.mod(counts, 2.0 * math.pi)))
+        fmt.append("{:.4f}")
+        header.append(RESOLVER_HEADER)
+    lines = ["Pruefstand 3; Aktuator-Pruefung", ";".join(header)]
     for j in range(rec["time"].size):
         lines.append(";".join(f.format(c[j]).replace(".", ",") for f, c in zip(fmt, cols)))
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
@@ -643,18 +657,21 @@ def write_unit(
     unit: Unit,
     healthy: list[Test],
     inspections: dict[str, tuple[Faults, Test]],
+    motor_angle: bool = False,
 ) -> None:
-    """A unit's rig folder: healthy recordings, inspections, the column map and the truth."""
+    """A unit's rig folder: healthy recordings, inspections, the column map and the truth
+    (with ``motor_angle``, the logger records the resolver angle too)."""
     folder.mkdir(parents=True, exist_ok=True)
     truth: dict = {"unit": asdict(unit), "recordings": {}}
     for j, test in enumerate(healthy):
         name = f"healthy-{j}.csv"
-        write_csv(folder / name, simulate(unit, Faults(), test))
+        write_csv(folder / name, simulate(unit, Faults(), test), motor_angle)
         truth["recordings"][name] = {"test": asdict(test), "faults": asdict(Faults())}
     for name, (faults, test) in inspections.items():
-        write_csv(folder / name, simulate(unit, faults, test))
+        write_csv(folder / name, simulate(unit, faults, test), motor_angle)
         truth["recordings"][name] = {"test": asdict(test), "faults": asdict(faults)}
-    (folder / "logger.yaml").write_text(COLUMN_MAP, encoding="utf-8")
+    column_map = COLUMN_MAP + (RESOLVER_MAP if motor_angle else "")
+    (folder / "logger.yaml").write_text(column_map, encoding="utf-8")
     (folder / "truth.json").write_text(json.dumps(truth, indent=2), encoding="utf-8")
 
 
