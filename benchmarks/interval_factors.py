@@ -58,6 +58,7 @@ from emaprog.faults import CATALOGUE, NUISANCES, QUANTITIES, fault_load, incipie
 from emaprog.identification.confidence import (
     BASES,
     EXPLAINED_LIMIT_BASES,
+    FORM_BASES,
     Z90,
     quantity_error,
     quantity_interval,
@@ -324,7 +325,7 @@ def write_laws(rows: list[dict], directories: list[Path], path: Path = LAWS_FILE
     written = set()
     for row in rows:
         basis, name = row["basis"], row["quantity"]
-        if name in NUISANCE_DEFAULTS and basis != "form":  # the form's laws hold its own
+        if name in NUISANCE_DEFAULTS and basis not in FORM_BASES:  # the form's hold their own
             if basis != "unit":
                 continue
             basis = "nuisance"

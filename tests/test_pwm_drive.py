@@ -144,6 +144,9 @@ def test_a_report_says_which_form_its_laws_were_calibrated_for():
     assert not chained["calibrated"] and "not calibrated" in chained["note"]
     assert basis_of(False, True, parameters.load("default").hysteresis_form) == "unit"
     assert basis_of(False, True, drive_set().hysteresis_form) == "form"
+    # its Monitor commutating on a recorded motor angle: the laws calibrated so
+    assert basis_of(False, True, drive_set().hysteresis_form, True) == "form_angle"
+    assert basis_of(False, True, parameters.load("default").hysteresis_form, True) == "unit"
     assert basis_of(False, True, hysteresis_logged.hysteresis_form) == "form"
     assert basis_of(False, False, drive_set().hysteresis_form) == "shipped"
     assert basis_of(True, True, drive_set().hysteresis_form) == "twin"

@@ -174,10 +174,16 @@ SHIPPED_ERROR: dict[str, ModelError] = {
 }
 
 
-#: Every quantity's and nuisance's law for a commissioned unit of another form (:func:`basis_of`
-#: "form"), calibrated on ``campaigns/calibration-pwm.yaml`` (docs/reference.md, Confidence).
-FORM_ERROR: dict[str, ModelError] = {
-    q: ModelError(*law) for q, law in MODEL_ERRORS["laws"]["form"].items()
+#: The bases of a commissioned unit of another form than the hysteresis one: "form", its
+#: Monitor commutating on its own motor angle, and "form_angle", on the recording's
+#: (docs/reference.md, The models): two Monitors, two error laws, each calibrated on
+#: ``campaigns/calibration-pwm.yaml`` identified so.
+FORM_BASES = ("form", "form_angle")
+#: Every quantity's and nuisance's law on each of :data:`FORM_BASES` (docs/reference.md,
+#: Confidence).
+FORM_ERRORS: dict[str, dict[str, ModelError]] = {
+    basis: {q: ModelError(*law) for q, law in MODEL_ERRORS["laws"][basis].items()}
+    for basis in FORM_BASES
 }
 
 
@@ -337,17 +343,23 @@ def _coordinates(
 #: identified against a set that was not fitted to it (the shipped set on a real actuator),
 #: and a commissioned unit of another form than the hysteresis drive with an ideal sensor
 #: chain (:attr:`~emaprog.config.parameters.Parameters.hysteresis_form`; calibrated on PWM
-#: units logged through a real chain under an aerodynamic spring).
-BASES = ("twin", "unit", "shipped", "form")
+#: units logged through a real chain under an aerodynamic spring), without and with a
+#: recorded motor angle (:data:`FORM_BASES`).
+BASES = ("twin", "unit", "shipped", *FORM_BASES)
 
 
-def basis_of(twin: bool, commissioned: bool, hysteresis_form: bool = True) -> str:
-    """Which laws apply (:data:`BASES`)."""
+def basis_of(
+    twin: bool, commissioned: bool, hysteresis_form: bool = True, motor_angle: bool = False
+) -> str:
+    """Which laws apply (:data:`BASES`); ``motor_angle``: the Monitor commutated on the
+    recording's."""
     if twin:
         return "twin"
     if not commissioned:
         return "shipped"
-    return "unit" if hysteresis_form else "form"
+    if hysteresis_form:
+        return "unit"
+    return "form_angle" if motor_angle else "form"
 
 
 def quantity_error(name: str, basis: str | bool = "unit") -> ModelError:
@@ -358,8 +370,8 @@ def quantity_error(name: str, basis: str | bool = "unit") -> ModelError:
     basis = {True: "twin", False: "unit"}.get(basis, basis) if isinstance(basis, bool) else basis
     if basis == "shipped" and name in SHIPPED_ERROR:
         return SHIPPED_ERROR[name]
-    if basis == "form":
-        return FORM_ERROR[name]
+    if basis in FORM_ERRORS:
+        return FORM_ERRORS[basis][name]
     for fault in CATALOGUE:
         laws = fault.twin_error if basis == "twin" else fault.model_error
         for q, law in zip(fault.quantities, laws):
@@ -385,13 +397,13 @@ MISMATCH_RATIO: dict[str, float] = dict(MODEL_ERRORS["mismatch_ratio"])
 #: were flagged (intervals at 90 % coverage miss healthy about one time in twenty per
 #: fault, and four faults are judged); with the whole interval, none, detection 68-88 %
 #: (docs/reference.md, Confidence).
-CLEAR_FINDING_BASES = frozenset({"form"})
+CLEAR_FINDING_BASES = frozenset(FORM_BASES)
 
 
 #: The bases whose explained limit is measured on their calibration units, not
 #: :data:`MAX_FLOOR_RATIO`: the form's (the PWM form's Monitor explains a unit's recording
 #: less closely than the hysteresis one, and its laws are calibrated on such fits).
-EXPLAINED_LIMIT_BASES = frozenset({"form"})
+EXPLAINED_LIMIT_BASES = frozenset(FORM_BASES)
 #: Per basis of :data:`EXPLAINED_LIMIT_BASES`, the fit-to-floor ratio up to which the Monitor
 #: explains a recording: the worst fit among its calibration units, rounded up
 #: (``benchmarks/interval_factors.py``). Every one of them was identified, and its
@@ -625,6 +637,8 @@ def assess(
         "shipped": "a parameter set not fitted to this unit",
         "form": "a unit's own parameter set, of a form other than the hysteresis drive with "
         "an ideal sensor chain",
+        "form_angle": "a unit's own parameter set, of a form other than the hysteresis drive "
+        "with an ideal sensor chain, the Monitor commutating on the recorded motor angle",
     }[basis]
     method = (
         "linearised (sandwich) covariance of the weighted least-squares fit at the "

@@ -519,7 +519,8 @@ def identify_trace(
     if commissioned is None:
         commissioned = params.spec.commissioning is not None
     twin = is_twin(trace, params)
-    basis = basis_of(twin, commissioned, params.hysteresis_form)
+    angle = objective.inputs.motor_angle is not None
+    basis = basis_of(twin, commissioned, params.hysteresis_form, angle)
     confidence = assess(
         objective,
         trace,
