@@ -21,7 +21,7 @@ from ..identification import result as verdicts
 from ..identification.defaults import resolve as resolve_settings
 from ..identification.objective import NUISANCE_DEFAULTS, ResidualRecording, recording_residual
 from ..models import reference
-from ..models.common import inputs
+from ..models.common import inputs, recorded_motor_angle
 from .sampling import CaseSpec, with_hinge
 
 
@@ -114,7 +114,10 @@ def run_case(spec: CaseSpec) -> dict:
     if spec.commission is not None:
         params, commission_row, recordings = commission_case(spec, unit)
     commissioned = time.perf_counter()
+    # the inspection's Monitor commutates on the recorded motor angle as the rig workflow's
+    # does (docs/reference.md, The models); the trace is on the scenario's grid
     inp = inputs(spec.scenario, params)
+    inp = inp._replace(motor_angle=recorded_motor_angle(trace, trace.time, inp.time, 0, params))
     settings = resolve_settings(
         spec.settings,
         trace.metadata,
