@@ -845,30 +845,32 @@ PLAUSIBLE_RATIO = 0.3
 #: set 0.06 rad of motor at a 100 N m hinge moment and 0.18 rad for the whole backlash range
 #: (1e-3 rad of surface).
 MOTOR_TRAVEL_CLEAR = 1.0
+#: What a motor angle off the position times the gear points to when no unit mistake does.
+ANGLE_OTHERWISE = "a unit, scale or sign in the map, or the set's gear_ratio, is wrong?"
 
 
-def _suspect(ratio: float) -> str:
+#: The same for a motor angle against the position times the gear ratio.
+_ANGLE_SUSPECTS = (
+    (180.0 / math.pi, "deg mapped as rad?"),
+    (math.pi / 180.0, "rad mapped as deg?"),
+    (-1.0, "the sign is inverted (sign: -1)?"),
+)
+
+
+def _suspect(
+    ratio: float,
+    suspects=_SUSPECTS,
+    otherwise: str = "a unit, scale or sign in the map is wrong?",
+) -> str:
     best = min(
-        _SUSPECTS,
+        suspects,
         key=lambda s: (
             abs(math.log(abs(ratio) / abs(s[0])))
             + (0.0 if math.copysign(1.0, ratio) == math.copysign(1.0, s[0]) else 10.0)
         ),
     )
     close = abs(ratio / best[0] - 1.0) < PLAUSIBLE_RATIO
-    return best[1] if close else "a unit, scale or sign in the map is wrong?"
-
-
-def _angle_suspect(ratio: float) -> str:
-    """The mapping mistake a motor angle ``ratio`` x the position times the gear points to."""
-    for factor, words in (
-        (180.0 / math.pi, "deg mapped as rad?"),
-        (math.pi / 180.0, "rad mapped as deg?"),
-        (-1.0, "the sign is inverted (sign: -1)?"),
-    ):
-        if abs(ratio / factor - 1.0) < PLAUSIBLE_RATIO:
-            return words
-    return "a unit, scale or sign in the map, or the set's gear_ratio, is wrong?"
+    return best[1] if close else otherwise
 
 
 def speed_source_of(trace: Trace) -> str:
@@ -935,7 +937,7 @@ def check_plausible(trace: Trace, params: Parameters, path) -> None:
             raise InputError(
                 path,
                 f"motor_angle is {ratio:.3g} x position x gear ratio {gear:g}: "
-                f"{_angle_suspect(ratio)} (column '{mapped['motor_angle'].column}')",
+                f"{_suspect(ratio, _ANGLE_SUSPECTS, ANGLE_OTHERWISE)} (column '{mapped['motor_angle'].column}')",
                 "motor_angle",
             )
     if speed_source == "recorded" and time.size > 20:
