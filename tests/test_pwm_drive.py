@@ -241,3 +241,47 @@ def test_the_recorded_motor_angle_reaches_the_grid_in_the_models_convention(pwm)
     assert recorded_motor_angle(Trace({"time": t_rec}, {}), t_rec, grid, 0, pwm) is None
     hysteresis = parameters.load("default")  # its Monitor keeps its own commutations
     assert recorded_motor_angle(trace, t_rec, grid, 0, hysteresis) is None
+
+
+def test_past_the_recorded_angles_explained_limit_the_own_angle_laws_judge(monkeypatch):
+    """A commissioned PWM unit identified on its recorded motor angle takes the ``form_angle``
+    laws while its fit is within their explained limit; past it (a unit whose friction law,
+    cogging or back-EMF shape the calibration never held) the wider own-angle ``form`` laws
+    judge it up to their own limit (docs/reference.md, Confidence), and past both it is not
+    explained. One identification (a GA of 8 x 2, no polish: the fit is what it is, here
+    over 100 x the floor) judged under limits set about its fit."""
+    from emaprog.identification import confidence
+    from emaprog.identification.run import identify_trace
+    from emaprog.models.common import recorded_motor_angle
+
+    sc = scenario("fig10-multiple-faults")
+    params = parameters.load("default-pwm")
+    unit = parameters.scaled(params, {"motor_inertia": 1.04}, "another unit")  # not a twin
+    trace = reference.simulate(sc, unit)
+    inp = inputs(sc, params)
+    inp = inp._replace(motor_angle=recorded_motor_angle(trace, trace.time, inp.time, 0, params))
+    ga = sc.identify.ga.model_copy(update={"population": 8, "generations": 2})
+    settings = sc.identify.model_copy(update={"ga": ga, "refine": False})
+
+    def judged(angle_limit: float, own_limit: float):
+        monkeypatch.setitem(confidence.EXPLAINED_LIMIT, "form_angle", angle_limit)
+        monkeypatch.setitem(confidence.EXPLAINED_LIMIT, "form", own_limit)
+        result = identify_trace(
+            trace, inp, params, settings, show_progress=False, commissioned=True
+        )
+        return result.confidence
+
+    first = judged(1.0e9, 1.0e9)
+    assert first.basis == "form_angle" and first.floor.explained
+    ratio = first.floor.ratio
+    past = judged(0.5 * ratio, 2.0 * ratio)
+    assert past.basis == "form" and past.floor.explained and past.floor.limit == 2.0 * ratio
+    assert past.floor.ratio == pytest.approx(ratio, rel=1e-12)  # the same identification
+    assert (
+        past.inconclusive != {f: "unexplained" for f in past.inconclusive} or not past.inconclusive
+    )
+    beyond = judged(0.5 * ratio, 0.7 * ratio)
+    assert beyond.basis == "form" and not beyond.floor.explained
+    assert len(beyond.inconclusive) == 4  # every fault, for that reason
+    assert all("does not explain" in why for why in beyond.inconclusive.values())
+    assert not any("does not explain" in why for why in past.inconclusive.values())

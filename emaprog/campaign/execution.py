@@ -169,7 +169,10 @@ def run_case(spec: CaseSpec) -> dict:
             "floor_ratio": float(confidence.floor.ratio),
             "fault_load": float(confidence.fault_load),
             "twin": bool(confidence.twin),
-            "basis": confidence.basis,
+            # the recording's own basis, which its calibration campaign calibrates, and the
+            # laws that judged it (another past that basis' explained limit)
+            "basis": confidence.past_limit_of or confidence.basis,
+            "laws": confidence.basis,
             "echo": bool(confidence.echo),
             **{
                 f"echo_{q}": float((confidence.echo or {}).get("errors", {}).get(q, nan))

@@ -210,6 +210,9 @@ class Confidence(NamedTuple):
     #: the faults ``inconclusive`` only because their interval does not clear the incipient
     #: threshold while it clears healthy (the fit explained, the recording informative)
     at_threshold: tuple[str, ...] = ()
+    #: the basis whose explained limit the fit passed, when :data:`WIDER_BASIS` gave ``basis``
+    #: (None: ``basis`` is the recording's own, :func:`basis_of`); campaigns calibrate by it
+    past_limit_of: str | None = None
 
 
 def noise_floor(
@@ -412,6 +415,16 @@ EXPLAINED_LIMIT_BASES = frozenset(FORM_BASES)
 #: A limit at the 95th percentile itself would make one unit in twenty of the calibrated
 #: form `inconclusive` by construction.
 EXPLAINED_LIMIT: dict[str, float] = dict(MODEL_ERRORS["explained_limit"])
+
+
+#: Per basis, the basis whose laws apply to a recording it does not explain (a fit past its
+#: :data:`EXPLAINED_LIMIT`). The recorded motor angle only takes the commutation's error out
+#: of the Monitor (docs/explanation/validation-and-speed.md): a unit whose recording it still
+#: explains worse than the worst of the PWM form's calibration units carries model error
+#: of another kind (its friction law, cogging, its back-EMF's shape), which the own-angle
+#: laws, calibrated on fits up to their own, wider limit, cover more widely; past that
+#: limit too the verdict is ``inconclusive``.
+WIDER_BASIS: dict[str, str] = {"form_angle": "form"}
 
 
 def floor_ratio_limit(basis: str) -> float:
@@ -777,7 +790,13 @@ def confidence_record(confidence: Confidence) -> dict:
             "fitness": floor.fitness,
             "ratio": floor.ratio,
             "explained": floor.explained,
-            "rule": f"explained when fitness <= {floor.limit:g} x the floor",
+            "rule": f"explained when fitness <= {floor.limit:g} x the floor"
+            + (
+                f" (past {EXPLAINED_LIMIT[confidence.past_limit_of]:g} x, the limit of the "
+                f"{confidence.past_limit_of} laws, the {confidence.basis} laws judge)"
+                if confidence.past_limit_of
+                else ""
+            ),
         },
         "standard_error": {q: finite(v) for q, v in confidence.standard_error.items()},
         "inconclusive": confidence.inconclusive,

@@ -18,7 +18,15 @@ from ..faults import CATALOGUE, FAULTS, PHASE_FAULTS, incipient_thresholds
 from ..io.storage import Trace
 from ..models.common import Inputs
 from ..numerics import DEFAULT, Numerics, serial_blas
-from .confidence import MISMATCH_RATIO, Confidence, assess, basis_of, is_twin, uninformative
+from .confidence import (
+    MISMATCH_RATIO,
+    WIDER_BASIS,
+    Confidence,
+    assess,
+    basis_of,
+    is_twin,
+    uninformative,
+)
 from .echo import echo_errors, off_calibration
 from .ga import GAOptions, minimize
 from .objective import (
@@ -520,23 +528,10 @@ def identify_trace(
         commissioned = params.spec.commissioning is not None
     twin = is_twin(trace, params)
     angle = objective.inputs.motor_angle is not None
-    basis = basis_of(twin, commissioned, params.hysteresis_form, angle)
-    confidence = assess(
-        objective,
-        trace,
-        estimate,
-        best_fitness,
-        settings.estimate,
-        params.spec.health,
-        twin=twin,
-        basis=basis,
-    )
-    reasons = off_calibration(
-        trace, confidence.floor.sigma, confidence.floor.ratio, MISMATCH_RATIO[basis]
-    )
-    if reasons and uninformative(objective, trace, confidence.floor) is None:
-        errors = echo_errors(objective, trace, estimate, settings, confidence.floor.sigma, numerics)
-        confidence = assess(
+    own = basis_of(twin, commissioned, params.hysteresis_form, angle)
+
+    def judged(basis: str, echo: dict | None = None) -> Confidence:
+        return assess(
             objective,
             trace,
             estimate,
@@ -545,8 +540,21 @@ def identify_trace(
             params.spec.health,
             twin=twin,
             basis=basis,
-            echo={"reasons": reasons, "errors": errors},
+            echo=echo,
         )
+
+    basis, confidence = own, judged(own)
+    if own in WIDER_BASIS and not confidence.floor.explained:
+        basis = WIDER_BASIS[own]
+        confidence = judged(basis)
+    reasons = off_calibration(
+        trace, confidence.floor.sigma, confidence.floor.ratio, MISMATCH_RATIO[basis]
+    )
+    if reasons and uninformative(objective, trace, confidence.floor) is None:
+        errors = echo_errors(objective, trace, estimate, settings, confidence.floor.sigma, numerics)
+        confidence = judged(basis, {"reasons": reasons, "errors": errors})
+    if basis != own:
+        confidence = confidence._replace(past_limit_of=own)
     return Identification(
         estimate=estimate,
         ga_estimate=objective.values(result.best),
