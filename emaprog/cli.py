@@ -80,7 +80,8 @@ def guarded(func: Callable) -> Callable:
         except InputError as exc:
             _fail(EXIT_INPUT, f"invalid input: {exc}")
         except KeyboardInterrupt as exc:
-            _fail(130, f"interrupted: {exc}" if str(exc) else "interrupted")
+            code = getattr(exc, "exit_code", 130)  # the shell's 128 + signal (campaign runs)
+            _fail(code, f"interrupted: {exc}" if str(exc) else "interrupted")
         except typer.Exit:
             raise
         except Exception as exc:  # noqa: BLE001 - the last line of defence

@@ -224,6 +224,38 @@ def test_ctrl_c_stops_cleanly_and_says_how_to_resume(tmp_path):
     assert len(stored) == len(campaigns.CaseStore(folder).finished()) >= 1
 
 
+def _group_alive(group: int) -> bool:
+    try:
+        os.killpg(group, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+def test_sigterm_to_the_sweep_alone_stops_its_workers_too(tmp_path):
+    """`kill PID` (or a batch scheduler's stop) reaches only the parent; its pool workers
+    must not go on computing unseen. Limit 30 s: a terminated worker ends at once, the
+    multiprocessing resource tracker when its pipe closes."""
+    path = write_campaign(tmp_path, cases=16)
+    folder = tmp_path / "terminated"
+    process = _start_sweep(path, folder)
+    _wait_for_cases(folder, 1, process)
+    process.send_signal(signal.SIGTERM)  # the parent only, not its group
+    _, err = process.communicate(timeout=60)
+    assert process.returncode == 143, err
+    assert "SIGTERM" in err and "--resume" in err and "Traceback" not in err
+    deadline = time.monotonic() + 30.0
+    while _group_alive(process.pid) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    alive = _group_alive(process.pid)
+    if alive:
+        os.killpg(process.pid, signal.SIGKILL)
+    assert not alive, "pool workers outlived the terminated sweep"
+    assert not list((folder / "cases").glob(".case-*"))  # no temporary left behind
+    stored = campaigns.CaseStore(folder).read()
+    assert len(stored) == len(campaigns.CaseStore(folder).finished()) >= 1
+
+
 def test_a_failing_case_is_recorded_and_retried_on_resume(tiny, tmp_path, monkeypatch):
     path, outcome = tiny
     real = campaigns.run_case

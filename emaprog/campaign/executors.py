@@ -1,11 +1,13 @@
-"""Where the cases run: serially, on a local process pool or on a Dask cluster; Ctrl-C stops cleanly."""
+"""Where the cases run: serially, on a local process pool or on a Dask cluster; Ctrl-C or
+SIGTERM stops cleanly."""
 
 from __future__ import annotations
 
 import os
 import signal
 import threading
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
 
 from ..errors import InputError
 from .execution import Failure, run_case_safely
@@ -130,7 +132,37 @@ def run_dask(specs: Iterable[CaseSpec], client, on_result: OnResult) -> None:
 
 
 class Interrupted(KeyboardInterrupt):
-    """Ctrl-C during a run of cases; the message says what is on disk and how to go on."""
+    """Ctrl-C (or SIGTERM) during a run of cases; the message says what is on disk and how to
+    go on, ``exit_code`` is the shell's for the signal (130 Ctrl-C, 143 SIGTERM)."""
+
+    exit_code = 130
+
+
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM arrived: the run stops as on Ctrl-C."""
+
+
+@contextmanager
+def _terminate_as_interrupt() -> Iterator[None]:
+    """SIGTERM (``kill PID``, a batch scheduler's stop) stops a run as Ctrl-C does.
+
+    Without this, SIGTERM ends the parent alone and its spawned pool workers go
+    on computing, unseen, until their queued cases are done. Ctrl-C reaches the
+    whole process group; ``kill PID`` only the parent. Outside the main thread
+    (where no handler can be set) nothing changes.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def stop(signum, frame) -> None:
+        raise _Terminated()
+
+    previous = signal.signal(signal.SIGTERM, stop)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def worker_count(requested: int | None, cases: int) -> int:
@@ -152,7 +184,7 @@ def execute(
     """Run ``count`` cases on the chosen back-end, storing each as it finishes.
 
     ``client`` (a Dask client) wins over ``workers``; one worker runs the cases
-    in this process. Returns ``{"done": n, "failed": n}``; Ctrl-C raises
+    in this process. Returns ``{"done": n, "failed": n}``; Ctrl-C or SIGTERM raises
     :class:`Interrupted` once the workers are stopped.
     """
     from .. import progress
@@ -170,15 +202,20 @@ def execute(
             advance(1, done=already + counts["done"], failed=counts["failed"])
 
         try:
-            if client is not None and count:
-                run_dask(specs, client, on_result)
-            elif workers == 1 or not count:
-                run_serial(specs, on_result)
-            else:
-                run_local(specs, workers, on_result)
-        except KeyboardInterrupt:
-            raise Interrupted(
+            with _terminate_as_interrupt():
+                if client is not None and count:
+                    run_dask(specs, client, on_result)
+                elif workers == 1 or not count:
+                    run_serial(specs, on_result)
+                else:
+                    run_local(specs, workers, on_result)
+        except KeyboardInterrupt as stop:
+            interrupted = Interrupted(
+                f"{'terminated (SIGTERM); ' if isinstance(stop, _Terminated) else ''}"
                 f"{already + counts['done']} cases are stored in {store.cases}; "
                 "run the same command with --resume to finish"
-            ) from None
+            )
+            if isinstance(stop, _Terminated):
+                interrupted.exit_code = 128 + signal.SIGTERM
+            raise interrupted from None
     return counts
