@@ -210,12 +210,12 @@ def execute(
                 else:
                     run_local(specs, workers, on_result)
         except KeyboardInterrupt as stop:
+            terminated = isinstance(stop, _Terminated)
             interrupted = Interrupted(
-                f"{'terminated (SIGTERM); ' if isinstance(stop, _Terminated) else ''}"
+                f"{'terminated (SIGTERM); ' if terminated else ''}"
                 f"{already + counts['done']} cases are stored in {store.cases}; "
                 "run the same command with --resume to finish"
             )
-            if isinstance(stop, _Terminated):
-                interrupted.exit_code = 128 + signal.SIGTERM
+            interrupted.exit_code = 128 + signal.SIGTERM if terminated else 130
             raise interrupted from None
     return counts

@@ -434,6 +434,15 @@ def floor_ratio_limit(basis: str) -> float:
     return EXPLAINED_LIMIT[basis] if basis in EXPLAINED_LIMIT_BASES else MAX_FLOOR_RATIO
 
 
+def judging_basis(objective: Objective, trace, fitness: float, basis: str) -> str:
+    """The basis whose laws judge a recording of ``basis`` (:func:`basis_of`): ``basis``, or
+    its :data:`WIDER_BASIS` when the fit lies past ``basis``' explained limit."""
+    wider = WIDER_BASIS.get(basis)
+    if wider is None or noise_floor(objective, trace, fitness, floor_ratio_limit(basis)).explained:
+        return basis
+    return wider
+
+
 def mismatch_widening(ratio: float, basis: str) -> float:
     """How much wider than its laws say a recording's standard errors are [-] (>= 1)."""
     return max(1.0, math.sqrt(ratio / MISMATCH_RATIO[basis])) if math.isfinite(ratio) else 1.0
@@ -792,7 +801,7 @@ def confidence_record(confidence: Confidence) -> dict:
             "explained": floor.explained,
             "rule": f"explained when fitness <= {floor.limit:g} x the floor"
             + (
-                f" (past {EXPLAINED_LIMIT[confidence.past_limit_of]:g} x, the limit of the "
+                f" (past {floor_ratio_limit(confidence.past_limit_of):g} x, the limit of the "
                 f"{confidence.past_limit_of} laws, the {confidence.basis} laws judge)"
                 if confidence.past_limit_of
                 else ""

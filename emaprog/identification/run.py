@@ -20,11 +20,11 @@ from ..models.common import Inputs
 from ..numerics import DEFAULT, Numerics, serial_blas
 from .confidence import (
     MISMATCH_RATIO,
-    WIDER_BASIS,
     Confidence,
     assess,
     basis_of,
     is_twin,
+    judging_basis,
     uninformative,
 )
 from .echo import echo_errors, off_calibration
@@ -529,8 +529,9 @@ def identify_trace(
     twin = is_twin(trace, params)
     angle = objective.inputs.motor_angle is not None
     own = basis_of(twin, commissioned, params.hysteresis_form, angle)
+    basis = judging_basis(objective, trace, best_fitness, own)
 
-    def judged(basis: str, echo: dict | None = None) -> Confidence:
+    def judged(echo: dict | None = None) -> Confidence:
         return assess(
             objective,
             trace,
@@ -543,16 +544,13 @@ def identify_trace(
             echo=echo,
         )
 
-    basis, confidence = own, judged(own)
-    if own in WIDER_BASIS and not confidence.floor.explained:
-        basis = WIDER_BASIS[own]
-        confidence = judged(basis)
+    confidence = judged()
     reasons = off_calibration(
         trace, confidence.floor.sigma, confidence.floor.ratio, MISMATCH_RATIO[basis]
     )
     if reasons and uninformative(objective, trace, confidence.floor) is None:
         errors = echo_errors(objective, trace, estimate, settings, confidence.floor.sigma, numerics)
-        confidence = judged(basis, {"reasons": reasons, "errors": errors})
+        confidence = judged({"reasons": reasons, "errors": errors})
     if basis != own:
         confidence = confidence._replace(past_limit_of=own)
     return Identification(
